@@ -1,0 +1,3 @@
+from renderloop.cli import main
+
+main()

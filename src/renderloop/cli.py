@@ -1,0 +1,75 @@
+"""The `renderloop` command: one verb per pipeline stage, plus `run` for all of them.
+
+Bad input ends in one line on stderr and exit code 2 (UserError); an operating-system
+failure such as a full disk or a read-only directory in one line and exit code 1.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.console import Console
+
+from renderloop import __version__
+from renderloop.config import PRESETS, load_config
+from renderloop.errors import UserError
+from renderloop.pipeline import run_pipeline
+from renderloop.scene.stage import run_scene
+
+app = typer.Typer(
+    name="renderloop",
+    help="Render-in-the-loop aerial robotics simulator: sweet-pepper yield estimation in a greenhouse.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+Preset = Annotated[str, typer.Option(help=f"Config preset: {', '.join(PRESETS)}.")]
+ConfigFile = Annotated[Optional[Path], typer.Option("--config", help="YAML file whose fields override the preset.")]
+Seed = Annotated[Optional[int], typer.Option(help="Seed of every random choice (overrides the config's).")]
+Out = Annotated[Path, typer.Option(help="Run directory to write into.")]
+Force = Annotated[bool, typer.Option("--force", help="Redo stages whose outputs already exist.")]
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"renderloop {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version.")] = False,
+) -> None:
+    """Render-in-the-loop aerial robotics simulator: sweet-pepper yield estimation in a greenhouse."""
+
+
+@app.command()
+def scene(out: Out, preset: Preset = "demo", config: ConfigFile = None, seed: Seed = None, force: Force = False) -> None:
+    """Generate the greenhouse: config.yaml, scene.json, world.xml (MJCF) and a top-view PNG."""
+    resolved = load_config(preset, config, seed)
+    made = run_scene(out, resolved, force)
+    typer.echo(f"scene: {'wrote' if made else 'already complete in'} {out}")
+
+
+@app.command()
+def run(out: Out, preset: Preset = "demo", config: ConfigFile = None, seed: Seed = None, force: Force = False) -> None:
+    """Run every stage of the pipeline in order, skipping stages that are already complete."""
+    resolved = load_config(preset, config, seed)
+    seconds = run_pipeline(out, resolved, force, Console(stderr=True))
+    typer.echo(f"run: {out} ({sum(seconds.values()):.1f} s)")
+
+
+def main() -> None:
+    try:
+        app()
+    except UserError as error:
+        print(f"renderloop: error: {error}", file=sys.stderr)
+        sys.exit(2)
+    except OSError as error:
+        where = f" {error.filename}" if error.filename else ""
+        print(f"renderloop: error:{where} {error.strerror or error}", file=sys.stderr)
+        sys.exit(1)

@@ -1,0 +1,55 @@
+"""Write files so that a reader (or a resumed run) never sees half of one.
+
+Every output goes to a temporary name in the same directory and is renamed into
+place, which is atomic on POSIX file systems: a killed process leaves either the
+old state or the complete new file, plus at most a stray temporary that the
+next write of that file replaces.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Iterator
+
+TEMP_SUFFIX = ".partial"
+
+
+def temporary_path(path: Path) -> Path:
+    return path.with_name(f".{path.name}{TEMP_SUFFIX}")
+
+
+@contextmanager
+def atomic_path(path: Path) -> Iterator[Path]:
+    """Yield a temporary path to write to; rename it onto `path` only if the block succeeds."""
+    path = Path(path)
+    tmp = temporary_path(path)
+    try:
+        yield tmp
+        with open(tmp, "rb") as written:
+            os.fsync(written.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_text(path: Path, text: str) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def write_bytes(path: Path, data: bytes) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+
+
+def dumps_json(data: Any) -> str:
+    """Stable JSON text: sorted keys and fixed indentation, so the same data gives the same bytes."""
+    return json.dumps(data, indent=1, sort_keys=True, ensure_ascii=False, allow_nan=False) + "\n"
+
+
+def write_json(path: Path, data: Any) -> None:
+    write_text(path, dumps_json(data))

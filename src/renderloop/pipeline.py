@@ -1,0 +1,45 @@
+"""`renderloop run`: every stage in order with one progress display, skipping complete ones.
+
+Stages are listed here in pipeline order; each is a function (run_dir, config, force)
+-> bool that returns False when its outputs were already complete. A killed run
+therefore resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+from renderloop.config import Config
+from renderloop.scene import stage as scene_stage
+
+
+@dataclass(frozen=True)
+class Stage:
+    name: str
+    outputs: tuple[str, ...]
+    run: Callable[[Path, Config, bool], bool]
+
+
+STAGES = (Stage("scene", scene_stage.OUTPUTS, scene_stage.run_scene),)
+
+
+def run_pipeline(run_dir: Path, config: Config, force: bool = False, console: Console | None = None) -> dict[str, float]:
+    """Run every stage; returns the seconds each one took (0 when it was skipped)."""
+    console = console or Console(stderr=True)
+    seconds: dict[str, float] = {}
+    columns = (TextColumn("{task.description:<28}"), BarColumn(), TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn())
+    with Progress(*columns, console=console, transient=False) as progress:
+        for stage in STAGES:
+            task = progress.add_task(stage.name, total=1)
+            start = time.perf_counter()
+            ran = stage.run(run_dir, config, force)
+            seconds[stage.name] = time.perf_counter() - start if ran else 0.0
+            note = "done" if ran else "complete, skipped"
+            progress.update(task, completed=1, description=f"{stage.name} ({note})")
+    return seconds

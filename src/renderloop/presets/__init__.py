@@ -1,0 +1,1 @@
+"""Preset YAML files: overrides applied on top of the config defaults."""

@@ -1,0 +1,1 @@
+"""Aerial manipulator: kinematics, rotor model and its MJCF."""

@@ -1,0 +1,1 @@
+"""Procedural greenhouse: layout, plants and peppers, scene.json, MJCF world, top view."""

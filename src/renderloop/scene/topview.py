@@ -1,0 +1,88 @@
+"""Top view of the greenhouse: the picture a user checks first to see what was generated."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.collections import PolyCollection  # noqa: E402
+from matplotlib.patches import Circle, Rectangle  # noqa: E402
+
+from renderloop.io.atomic import atomic_path  # noqa: E402
+from renderloop.scene.model import Plant, Scene  # noqa: E402
+from renderloop.scene.plant_meshes import plant_meshes  # noqa: E402
+
+PEPPER_FACE = {"red": "#c81e14", "yellow": "#f0c20a", "orange": "#f07814", "green": "#3c9a28"}
+
+
+def _rectangle(center, size, **style) -> Rectangle:
+    return Rectangle((center[0] - size[0] / 2, center[1] - size[1] / 2), size[0], size[1], **style)
+
+
+def _draw_layout(axes, scene: Scene) -> None:
+    length, width, _ = scene.room
+    axes.add_patch(_rectangle((0, 0), (length, width), fill=False, lw=2, ec="0.3"))
+    for row in scene.rows:
+        table = row.table
+        axes.add_patch(_rectangle(table.center, table.size, fc="0.85", ec="0.5"))
+        axes.annotate(f"row {row.id}", (table.center[0], table.center[1] + table.size[1] / 2 + 0.08), ha="center", fontsize=8)
+    station = scene.workstation
+    axes.add_patch(_rectangle(station.center, station.size, fc="#8090b0", ec="0.3"))
+    axes.annotate("workstation", (station.center[0], station.center[1] - station.size[1] / 2 - 0.2), ha="center", fontsize=8)
+
+
+def _draw_plants(axes, scene: Scene, plants: list[Plant], detailed: bool) -> None:
+    for plant in plants:
+        low, high = plant.bounds.min, plant.bounds.max
+        axes.add_patch(Rectangle(low[:2], high[0] - low[0], high[1] - low[1], fill=False, ls=":", ec="#2a7a2a", lw=0.8))
+        axes.add_patch(Circle(plant.position[:2], plant.pot.radius_top, fc="0.2", alpha=0.5))
+        if detailed:  # leaf blades seen from above, lowest first
+            parts = plant_meshes(plant, [])
+            order = sorted(range(len(parts.leaves)), key=lambda i: parts.leaves[i].vertices[:, 2].mean())
+            triangles = [parts.leaves[i].vertices[parts.leaves[i].faces][:, :, :2] for i in order]
+            colors = [plant.leaves[i].rgb for i in order for _ in parts.leaves[i].faces]
+            axes.add_collection(PolyCollection([t for block in triangles for t in block], facecolors=colors, lw=0, alpha=0.9))
+            axes.annotate(f"plant {plant.id}", (plant.position[0], high[1] - 0.03), ha="center", fontsize=8)
+        else:
+            for leaf in plant.leaves:
+                tip = [leaf.base[i] + leaf.direction[i] * leaf.length for i in range(2)]
+                axes.plot([leaf.base[0], tip[0]], [leaf.base[1], tip[1]], color=leaf.rgb, lw=1.2, alpha=0.8)
+        for pepper in scene.peppers_of(plant.id):
+            axes.add_patch(Circle(pepper.center[:2], pepper.radius, fc=PEPPER_FACE[pepper.color],
+                                  ec="k" if pepper.ripe else "#1a4a10", lw=0.6, zorder=3))
+            if detailed:
+                axes.annotate(str(pepper.id), pepper.center[:2], ha="center", va="center", fontsize=6, color="w", zorder=4)
+
+
+def draw_top_view(scene: Scene, path: Path) -> None:
+    """Whole greenhouse on the left, the row with most fruit enlarged on the right."""
+    length, width, _ = scene.room
+    figure, (overview, zoom) = plt.subplots(1, 2, figsize=(15, 8), dpi=100, gridspec_kw={"width_ratios": [2.2, 1]})
+    _draw_layout(overview, scene)
+    _draw_plants(overview, scene, scene.plants, detailed=False)
+    counts = {color: sum(p.color == color for p in scene.peppers) for color in PEPPER_FACE}
+    legend = ", ".join(f"{n} {color}" for color, n in counts.items() if n)
+    overview.set_title(f"seed {scene.seed}: {len(scene.plants)} plants, "
+                       f"{sum(p.bearing for p in scene.plants)} bearing, {len(scene.peppers)} peppers ({legend})")
+    overview.set_xlim(-length / 2 - 0.2, length / 2 + 0.2)
+    overview.set_ylim(-width / 2 - 0.2, width / 2 + 0.2)
+
+    row = max(scene.rows, key=lambda r: sum(len(scene.peppers_of(plant_id)) for plant_id in r.plants))
+    table = row.table
+    zoom.add_patch(_rectangle(table.center, table.size, fc="0.85", ec="0.5"))
+    _draw_plants(zoom, scene, [scene.plant(plant_id) for plant_id in row.plants], detailed=True)
+    zoom.set_xlim(table.center[0] - 0.45, table.center[0] + 0.45)
+    zoom.set_ylim(table.center[1] - table.size[1] / 2 - 0.05, table.center[1] + table.size[1] / 2 + 0.05)
+    zoom.set_title(f"row {row.id} (pepper ids; left side is -x)")
+    for axes in (overview, zoom):
+        axes.set_aspect("equal")
+        axes.set_xlabel("x (m, east)")
+        axes.set_ylabel("y (m, north)")
+        axes.grid(alpha=0.3)
+    figure.tight_layout()
+    with atomic_path(Path(path)) as tmp:
+        figure.savefig(tmp, format="png")
+    plt.close(figure)

@@ -1,0 +1,121 @@
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import mujoco
+import pytest
+
+from renderloop.cli import main
+from renderloop.config import load_config
+from renderloop.io.atomic import dumps_json
+from renderloop.scene.generate import generate_scene
+
+SCENE_FILES = {"config.yaml", "scene.json", "world.xml", "scene_topview.png"}
+
+
+def cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
+    """Run the real entry point in-process: exit code, stdout, stderr."""
+    monkeypatch.setattr(sys, "argv", ["renderloop", *args])
+    with pytest.raises(SystemExit) as ended:
+        main()
+    captured = capsys.readouterr()
+    return ended.value.code or 0, captured.out, captured.err
+
+
+def test_every_verb_has_help():
+    for verb in ([], ["scene"], ["run"]):
+        result = subprocess.run([sys.executable, "-m", "renderloop", *verb, "--help"], capture_output=True, text=True)
+        assert result.returncode == 0, result.stderr
+        assert "Usage" in result.stdout
+
+
+def test_scene_writes_the_run_directory_and_resumes(monkeypatch, capsys, tmp_path: Path):
+    out = tmp_path / "run"
+    code, stdout, _ = cli(monkeypatch, capsys, "scene", "--preset", "paper", "--seed", "7", "--out", str(out))
+    assert code == 0 and "wrote" in stdout
+    assert {p.name for p in out.iterdir()} == SCENE_FILES
+    expected = dumps_json(generate_scene(load_config("paper", seed=7)).model_dump(mode="json"))
+    assert (out / "scene.json").read_text() == expected
+    mujoco.MjModel.from_xml_path(str(out / "world.xml"))
+    assert (out / "scene_topview.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
+    code, stdout, _ = cli(monkeypatch, capsys, "scene", "--preset", "paper", "--seed", "7", "--out", str(out))
+    assert code == 0 and "already complete" in stdout
+    assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
+
+    code, _, stderr = cli(monkeypatch, capsys, "scene", "--preset", "paper", "--seed", "8", "--out", str(out))
+    assert code == 2 and "another config" in stderr
+    code, _, _ = cli(monkeypatch, capsys, "scene", "--preset", "paper", "--seed", "8", "--out", str(out), "--force")
+    assert code == 0 and (out / "scene.json").read_text() != expected
+
+
+def test_half_written_scene_is_completed(monkeypatch, capsys, tmp_path: Path):
+    out = tmp_path / "run"
+    cli(monkeypatch, capsys, "scene", "--out", str(out))
+    reference = (out / "scene.json").read_bytes()
+    (out / "scene.json").unlink()
+    code, stdout, _ = cli(monkeypatch, capsys, "scene", "--out", str(out))
+    assert code == 0 and "wrote" in stdout
+    assert (out / "scene.json").read_bytes() == reference
+    assert not [p for p in out.iterdir() if p.name.endswith(".partial")]
+
+
+def test_run_on_the_demo_preset(monkeypatch, capsys, tmp_path: Path):
+    out = tmp_path / "demo"
+    code, stdout, stderr = cli(monkeypatch, capsys, "run", "--out", str(out))
+    assert code == 0, stderr
+    assert "scene" in stderr and SCENE_FILES <= {p.name for p in out.iterdir()}
+
+
+BAD_CONFIGS = {
+    "unknown key": ("greenhouse:\n  colour: red\n", "greenhouse.colour: unknown field"),
+    "zero count": ("greenhouse:\n  plants_per_table: 0\n", "greenhouse.plants_per_table"),
+    "negative count": ("plants:\n  leaves: [-3, 4]\n", "plants.leaves"),
+    "peppers cannot fit": ("plants:\n  peppers:\n    per_side: [40, 60]\n", "plants.peppers.per_side"),
+    "not yaml": ("greenhouse: {tables: [\n", "not valid YAML"),
+    "not a mapping": ("42\n", "expected a mapping"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_CONFIGS))
+def test_bad_config_exits_2_with_one_line_and_writes_nothing(monkeypatch, capsys, tmp_path: Path, case: str):
+    text, message = BAD_CONFIGS[case]
+    config = tmp_path / "bad.yaml"
+    config.write_text(text)
+    out = tmp_path / "run"
+    code, _, stderr = cli(monkeypatch, capsys, "scene", "--config", str(config), "--out", str(out))
+    assert code == 2
+    assert message in stderr and stderr.count("\n") == 1 and "Traceback" not in stderr
+    assert not out.exists()
+
+
+def test_other_bad_input(monkeypatch, capsys, tmp_path: Path):
+    code, _, stderr = cli(monkeypatch, capsys, "scene", "--preset", "nope", "--out", str(tmp_path / "a"))
+    assert code == 2 and "unknown preset 'nope'" in stderr and stderr.count("\n") == 1
+
+    unreadable = tmp_path / "binary.yaml"
+    unreadable.write_bytes(b"\xff\xfe\x00garbage")
+    code, _, stderr = cli(monkeypatch, capsys, "scene", "--config", str(unreadable), "--out", str(tmp_path / "b"))
+    assert code == 2 and "binary.yaml: cannot read config" in stderr
+
+    code, _, stderr = cli(monkeypatch, capsys, "scene", "--config", str(tmp_path / "missing.yaml"), "--out", str(tmp_path / "c"))
+    assert code == 2 and "missing.yaml: cannot read config" in stderr
+
+    a_file = tmp_path / "file.txt"
+    a_file.write_text("not a directory")
+    code, _, stderr = cli(monkeypatch, capsys, "scene", "--out", str(a_file))
+    assert code == 2 and "is a file, not a directory" in stderr
+    assert a_file.read_text() == "not a directory"
+    assert not any(tmp_path.glob("[abc]"))
+
+
+def test_entry_point_reports_bad_input_without_traceback(tmp_path: Path):
+    result = subprocess.run(
+        [sys.executable, "-m", "renderloop", "scene", "--preset", "nope", "--out", str(tmp_path / "x")],
+        capture_output=True, text=True,
+    )
+    assert result.returncode == 2
+    assert result.stderr.strip() == "renderloop: error: unknown preset 'nope' (choose from: demo, paper)"
