@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 
 import pytest
 
 from renderloop.config import Config, load_config
+from renderloop.planning.stage import run_plan
 from renderloop.scene.generate import generate_scene
 from renderloop.scene.model import Scene
+from renderloop.scene.stage import run_scene
+from renderloop.sim.stage import run_fly
 
 
 @functools.cache
@@ -25,3 +29,14 @@ def paper() -> tuple[Config, Scene]:
 @pytest.fixture(scope="session")
 def demo() -> tuple[Config, Scene]:
     return scene_for("demo", 0)
+
+
+@pytest.fixture(scope="session")
+def paper_run(tmp_path_factory) -> tuple[Config, Path]:
+    """The paper scenario planned and flown once (about 15 s): the closed-loop figures are read from it."""
+    config = load_config("paper", seed=7)
+    run_dir = tmp_path_factory.mktemp("paper7")
+    run_scene(run_dir, config)
+    run_plan(run_dir, config)
+    run_fly(run_dir, config)
+    return config, run_dir

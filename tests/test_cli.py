@@ -25,7 +25,7 @@ def cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
 
 
 def test_every_verb_has_help():
-    for verb in ([], ["scene"], ["run"]):
+    for verb in ([], ["scene"], ["plan"], ["fly"], ["run"]):
         result = subprocess.run([sys.executable, "-m", "renderloop", *verb, "--help"], capture_output=True, text=True)
         assert result.returncode == 0, result.stderr
         assert "Usage" in result.stdout
@@ -63,11 +63,54 @@ def test_half_written_scene_is_completed(monkeypatch, capsys, tmp_path: Path):
     assert not [p for p in out.iterdir() if p.name.endswith(".partial")]
 
 
-def test_run_on_the_demo_preset(monkeypatch, capsys, tmp_path: Path):
+RUN_FILES = SCENE_FILES | {"waypoints.csv", "trajectory.csv", "flight.csv", "groundtruth.txt", "flight_paths.png", "tracking_error.png"}
+
+
+def test_run_on_the_demo_preset_resumes_and_redoes_what_is_stale(monkeypatch, capsys, tmp_path: Path):
     out = tmp_path / "demo"
     code, stdout, stderr = cli(monkeypatch, capsys, "run", "--out", str(out))
     assert code == 0, stderr
-    assert "scene" in stderr and SCENE_FILES <= {p.name for p in out.iterdir()}
+    assert {"scene (done)", "plan (done)", "fly (done)"} <= {line.split("  ")[0].strip() for line in stderr.splitlines()}
+    assert {p.name for p in out.iterdir()} == RUN_FILES
+    stamps = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
+
+    code, _, stderr = cli(monkeypatch, capsys, "run", "--out", str(out))
+    assert code == 0 and stderr.count("complete, skipped") == 3
+    assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == stamps
+
+    flight = (out / "flight.csv").read_bytes()
+    cli(monkeypatch, capsys, "scene", "--out", str(out), "--force")  # an earlier stage redone...
+    code, stdout, _ = cli(monkeypatch, capsys, "plan", str(out))
+    assert code == 0 and "wrote" in stdout  # ...makes the later ones stale
+    code, stdout, _ = cli(monkeypatch, capsys, "fly", str(out))
+    assert code == 0 and "wrote" in stdout
+    assert (out / "flight.csv").read_bytes() == flight  # same seed, same flight
+
+
+def test_stages_refuse_missing_or_broken_inputs(monkeypatch, capsys, tmp_path: Path):
+    out = tmp_path / "run"
+    code, _, stderr = cli(monkeypatch, capsys, "plan", str(out))
+    assert code == 2 and "not a run directory" in stderr
+    cli(monkeypatch, capsys, "scene", "--out", str(out))
+    code, _, stderr = cli(monkeypatch, capsys, "fly", str(out))
+    assert code == 2 and "missing waypoints.csv, trajectory.csv (run `renderloop plan` first)" in stderr
+    cli(monkeypatch, capsys, "plan", str(out))
+    trajectory = out / "trajectory.csv"
+    text = trajectory.read_text()
+    trajectory.write_text(text[: len(text) // 2].rsplit(",", 3)[0] + "\n")  # cut off mid-row
+    code, _, stderr = cli(monkeypatch, capsys, "fly", str(out))
+    assert code == 2 and "trajectory.csv: not a numeric table" in stderr and stderr.count("\n") == 1
+    assert not (out / "flight.csv").exists()
+
+
+def test_plan_with_a_take_off_point_outside_the_room_exits_2(monkeypatch, capsys, tmp_path: Path):
+    config = tmp_path / "far.yaml"
+    config.write_text("robot:\n  home: [5.9, 0.0, 0.0]\n")
+    out = tmp_path / "run"
+    cli(monkeypatch, capsys, "scene", "--config", str(config), "--out", str(out))
+    code, _, stderr = cli(monkeypatch, capsys, "plan", str(out))
+    assert code == 2 and "transit start" in stderr and stderr.count("\n") == 1
+    assert not (out / "trajectory.csv").exists()
 
 
 BAD_CONFIGS = {

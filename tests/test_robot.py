@@ -113,12 +113,13 @@ def test_mixer_round_trip_and_saturation():
     for _ in range(200):
         speeds = rng.uniform(200, rotors.max_speed, 4)
         wrench = rotors.wrench(speeds)
-        assert np.allclose(rotors.speeds_for(wrench), speeds)
-        assert not rotors.saturated(wrench)
+        mixed, saturated = rotors.mix(wrench)
+        assert np.allclose(mixed, speeds) and not saturated
     too_much = rotors.wrench(np.full(4, rotors.max_speed)) * 1.5
-    assert rotors.saturated(too_much)
-    assert np.all(rotors.speeds_for(too_much) <= rotors.max_speed)
-    assert np.all(rotors.speeds_for(np.array([0.0, 50.0, 0.0, 0.0])) >= 0.0)  # a negative w² stops that rotor
+    clamped, saturated = rotors.mix(too_much)
+    assert saturated and np.all(clamped <= rotors.max_speed)
+    stopped, saturated = rotors.mix(np.array([0.0, 50.0, 0.0, 0.0]))  # a negative w² stops that rotor
+    assert saturated and np.all(stopped >= 0.0)
 
 
 def test_hover_speed_for_the_total_mass_and_mujoco_actuators(paper, model):
@@ -137,7 +138,7 @@ def test_hover_speed_for_the_total_mass_and_mujoco_actuators(paper, model):
         wanted = np.array([total_mass * GRAVITY, *rng.uniform(-1, 1, 2), rng.uniform(-0.1, 0.1)])
         data.qpos[:] = 0
         data.qpos[3] = 1
-        data.ctrl[:4] = rotors.speeds_for(wanted) ** 2
+        data.ctrl[:4] = rotors.mix(wanted)[0] ** 2
         mujoco.mj_forward(model, data)
         assert np.allclose(data.qfrc_actuator[2:6], wanted, atol=1e-9)
         assert np.allclose(data.qfrc_actuator[:2], 0, atol=1e-12)

@@ -16,8 +16,11 @@ from rich.console import Console
 from renderloop import __version__
 from renderloop.config import PRESETS, load_config
 from renderloop.errors import UserError
+from renderloop.io.rundir import read_config
 from renderloop.pipeline import run_pipeline
+from renderloop.planning.stage import run_plan
 from renderloop.scene.stage import run_scene
+from renderloop.sim.stage import run_fly
 
 app = typer.Typer(
     name="renderloop",
@@ -32,6 +35,7 @@ ConfigFile = Annotated[Optional[Path], typer.Option("--config", help="YAML file 
 Seed = Annotated[Optional[int], typer.Option(help="Seed of every random choice (overrides the config's).")]
 Out = Annotated[Path, typer.Option(help="Run directory to write into.")]
 Force = Annotated[bool, typer.Option("--force", help="Redo stages whose outputs already exist.")]
+RunDir = Annotated[Path, typer.Argument(help="Run directory made by `renderloop scene`.", show_default=False)]
 
 
 def _version(value: bool) -> None:
@@ -53,6 +57,20 @@ def scene(out: Out, preset: Preset = "demo", config: ConfigFile = None, seed: Se
     resolved = load_config(preset, config, seed)
     made = run_scene(out, resolved, force)
     typer.echo(f"scene: {'wrote' if made else 'already complete in'} {out}")
+
+
+@app.command()
+def plan(run_dir: RunDir, force: Force = False) -> None:
+    """Plan the scan: waypoints.csv (elliptical scans, transits) and trajectory.csv (TOPP-RA, 100 Hz)."""
+    made = run_plan(run_dir, read_config(run_dir), force)
+    typer.echo(f"plan: {'wrote' if made else 'already complete in'} {run_dir}")
+
+
+@app.command()
+def fly(run_dir: RunDir, force: Force = False) -> None:
+    """Fly the trajectory in MuJoCo under cascade PID: flight.csv, groundtruth.txt (camera poses, TUM), plots."""
+    made = run_fly(run_dir, read_config(run_dir), force)
+    typer.echo(f"fly: {'wrote' if made else 'already complete in'} {run_dir}")
 
 
 @app.command()

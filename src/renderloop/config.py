@@ -161,7 +161,7 @@ class CameraConfig(Strict):
     width: PositiveInt = 640
     height: PositiveInt = 480
     hfov_deg: float = Field(57.0, gt=1, lt=179)
-    clip: tuple[PositiveFloat, PositiveFloat] = (0.4, 5.0)
+    clip: tuple[PositiveFloat, PositiveFloat] = (0.2, 5.0)
     rate_hz: PositiveFloat = 5.0
 
     @model_validator(mode="after")
@@ -181,7 +181,7 @@ class PlannerConfig(Strict):
     distance: PositiveFloat = 1.0
     semi_axes: tuple[PositiveFloat, PositiveFloat] = (0.125, 0.25)
     points_per_ellipse: PositiveInt = 10
-    max_camera_pitch: NonNegativeFloat = 0.267
+    max_camera_pitch: NonNegativeFloat = Field(0.6, le=1.5, description="rad; 0.6 lets the camera aim at the centroid from the ellipse top.")
     velocity_limits: tuple[PositiveFloat, ...] = Field((1.5, 1.5, 0.5, 0.3, 1.0, 1.0, 1.0), min_length=7, max_length=7)
     acceleration_limits: tuple[PositiveFloat, ...] = Field(
         (0.6, 0.6, 0.4, 0.3, 1.2, 1.2, 1.2), min_length=7, max_length=7
@@ -198,19 +198,29 @@ class PID(Strict):
 
 
 class ControllerConfig(Strict):
-    """Cascade PID gains (the authors' values as a starting point) and loop rates."""
+    """Cascade PID gains in SI units, and the loop rates.
 
-    rate_hz: PositiveFloat = 100.0
-    physics_dt: PositiveFloat = Field(0.002, le=0.01)
-    position_xy: PID = PID(p=2.0)
-    velocity_xy: PID = PID(p=0.5, i=0.1, limit=1.57)
-    position_z: PID = PID(p=10.0, i=0.5)
-    velocity_z: PID = PID(p=350.0, i=40.0)
-    attitude: PID = PID(p=7.0, i=0.5)
-    rate: PID = PID(p=190.0, i=15.0, d=3.0)
+    Position loops give velocity (1/s), velocity loops acceleration (m/s² per m/s; the xy
+    gains are in rad of tilt per m/s as in the reference work, times g), the attitude loop
+    body rates (1/s) and the rate loop angular acceleration (1/s, times the inertia).
+    The xy and attitude gains are the authors'; z, rate and joint gains are retuned for
+    these units (their rate and z gains acted on rotor-speed units). Joint PIDs act on
+    joint acceleration through the arm's mass matrix, with gravity compensation.
+    """
+
+    rate_hz: PositiveFloat = Field(100.0, ge=50.0)
+    physics_dt: PositiveFloat = Field(0.002, le=0.002)
+    position_xy: PID = PID(p=2.0, limit=3.0)
+    velocity_xy: PID = PID(p=0.5, i=0.1)
+    max_tilt: PositiveFloat = Field(0.6, lt=1.57, description="Largest commanded roll or pitch, rad.")
+    position_z: PID = PID(p=4.0, limit=2.0)
+    velocity_z: PID = PID(p=8.0, i=3.0)
+    attitude: PID = PID(p=7.0)
+    rate: PID = PID(p=25.0, i=3.0)
     yaw: PID = PID(p=5.0)
-    yaw_rate: PID = PID(p=180.0)
-    joints: PID = PID(p=4.0, i=0.5, d=0.2)
+    yaw_rate: PID = PID(p=12.0, i=1.0)
+    joints: PID = PID(p=400.0, i=200.0, d=32.0)
+    compensate_arm_pitch: bool = Field(True, description="Joint 1 cancels the body's pitch, so the camera holds its planned pitch.")
     position_noise_std: NonNegativeFloat = Field(0.0, description="UWB-like noise on the position fed back, m.")
 
 

@@ -16,7 +16,9 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from renderloop.config import Config
+from renderloop.planning import stage as plan_stage
 from renderloop.scene import stage as scene_stage
+from renderloop.sim import stage as fly_stage
 
 
 @dataclass(frozen=True)
@@ -26,7 +28,11 @@ class Stage:
     run: Callable[[Path, Config, bool], bool]
 
 
-STAGES = (Stage("scene", scene_stage.OUTPUTS, scene_stage.run_scene),)
+STAGES = (
+    Stage("scene", scene_stage.OUTPUTS, scene_stage.run_scene),
+    Stage("plan", plan_stage.OUTPUTS, plan_stage.run_plan),
+    Stage("fly", fly_stage.OUTPUTS, fly_stage.run_fly),
+)
 
 
 def run_pipeline(run_dir: Path, config: Config, force: bool = False, console: Console | None = None) -> dict[str, float]:

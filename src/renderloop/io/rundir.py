@@ -25,8 +25,23 @@ def check_target(run_dir: Path) -> Path:
     return run_dir
 
 
-def complete(run_dir: Path, outputs: tuple[str, ...]) -> bool:
-    return all((run_dir / name).is_file() for name in outputs)
+def complete(run_dir: Path, outputs: tuple[str, ...], inputs: tuple[str, ...] = ()) -> bool:
+    """All outputs exist and none is older than an input (as make decides), so redoing
+    an early stage with --force makes the later ones run again."""
+    paths = [run_dir / name for name in outputs]
+    if not all(path.is_file() for path in paths):
+        return False
+    sources = [run_dir / name for name in inputs if (run_dir / name).is_file()]
+    if not sources:
+        return True
+    return min(path.stat().st_mtime_ns for path in paths) >= max(path.stat().st_mtime_ns for path in sources)
+
+
+def require(run_dir: Path, names: tuple[str, ...], stage: str) -> None:
+    """Refuse to run a stage whose inputs an earlier stage has not written yet."""
+    missing = [name for name in names if not (run_dir / name).is_file()]
+    if missing:
+        raise UserError(f"{run_dir}: missing {', '.join(missing)} (run `renderloop {stage}` first)")
 
 
 def check_config(run_dir: Path, config: Config) -> None:

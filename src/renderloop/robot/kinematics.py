@@ -111,3 +111,18 @@ def camera_pose_to_dofs(
     reach = rot_z(yaw) @ body_to_camera(arm, q)[:3, 3]
     x, y, z = pose[:3, 3] - reach
     return np.array([x, y, z, yaw, *q])
+
+
+def planned_camera_positions(dofs: np.ndarray, arm: ArmConfig) -> np.ndarray:
+    """Camera positions for many q* at once (level body): the path the camera is meant to fly."""
+    dofs = np.atleast_2d(dofs)
+    angles = np.cumsum(dofs[:, 4:7], axis=1)
+    lengths = np.asarray(arm.link_lengths)
+    forward = arm.mount[0] + np.cos(angles) @ lengths
+    up = arm.mount[2] - np.sin(angles) @ lengths
+    yaw = dofs[:, 3]
+    return np.column_stack([
+        dofs[:, 0] + np.cos(yaw) * forward - np.sin(yaw) * arm.mount[1],
+        dofs[:, 1] + np.sin(yaw) * forward + np.cos(yaw) * arm.mount[1],
+        dofs[:, 2] + up,
+    ])

@@ -46,6 +46,7 @@ class RotorModel:
         self.kf = rotor.kf
         self.km = rotor.km
         self.max_speed = rotor.max_speed
+        self.max_speed_squared = rotor.max_speed**2
         self.time_constant = rotor.time_constant
         self.geometry = rotor_geometry(robot.arm_length, rotor.layout)
         self.K = input_mapping(self.geometry, self.kf, self.km)
@@ -55,18 +56,15 @@ class RotorModel:
         """[thrust, Mx, My, Mz] produced by rotor speeds in rad/s."""
         return self.K @ np.square(speeds)
 
-    def speeds_for(self, wrench: np.ndarray) -> np.ndarray:
-        """Rotor speeds for a wanted wrench; each speed clamped to [0, max_speed].
+    def mix(self, wrench: np.ndarray) -> tuple[np.ndarray, bool]:
+        """Rotor speeds for a wanted wrench, each clamped to [0, max_speed], and whether any was clamped.
 
         The mixer may ask for a negative w² (a moment too large for the thrust): that
         rotor stops, which is what a real ESC does too.
         """
-        squared = self.K_inv @ np.asarray(wrench, dtype=float)
-        return np.sqrt(np.clip(squared, 0.0, self.max_speed**2))
-
-    def saturated(self, wrench: np.ndarray) -> bool:
-        squared = self.K_inv @ np.asarray(wrench, dtype=float)
-        return bool(np.any(squared < 0.0) or np.any(squared > self.max_speed**2))
+        squared = self.K_inv @ wrench
+        saturated = bool(squared.min() < 0.0 or squared.max() > self.max_speed_squared)
+        return np.sqrt(np.minimum(np.maximum(squared, 0.0), self.max_speed_squared)), saturated
 
     def hover_speed(self, total_mass: float, gravity: float = GRAVITY) -> float:
         return math.sqrt(total_mass * gravity / (4.0 * self.kf))

@@ -1,0 +1,1 @@
+"""Cascade PID for the UAV and joint PIDs for the arm."""

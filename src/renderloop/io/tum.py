@@ -1,0 +1,38 @@
+"""TUM RGB-D trajectory files: `timestamp tx ty tz qx qy qz qw`, one pose per line, '#' comments.
+
+Open3D, evo and the SLAM tools read them as they are.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from renderloop.errors import UserError
+from renderloop.io.atomic import write_text
+
+
+def write_tum(path: Path, times: np.ndarray, positions: np.ndarray, rotations: np.ndarray, comment: str) -> None:
+    quaternions = Rotation.from_matrix(rotations).as_quat()  # qx qy qz qw, as TUM and ROS store them
+    buffer = io.StringIO()
+    buffer.write("".join(f"# {line}\n" for line in comment.splitlines()))
+    buffer.write("# timestamp tx ty tz qx qy qz qw\n")
+    np.savetxt(buffer, np.column_stack([times, positions, quaternions]), fmt=["%.6f"] + ["%.9f"] * 7)
+    write_text(path, buffer.getvalue())
+
+
+def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Timestamps (N,), positions (N, 3) and rotation matrices (N, 3, 3)."""
+    path = Path(path)
+    try:
+        table = np.loadtxt(path, comments="#", ndmin=2)
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such file") from None
+    except ValueError as exc:
+        raise UserError(f"{path}: not a TUM pose file ({str(exc).splitlines()[0]})") from None
+    if table.shape[1] != 8 or not np.all(np.isfinite(table)):
+        raise UserError(f"{path}: expected lines of 8 numbers: timestamp tx ty tz qx qy qz qw")
+    return table[:, 0], table[:, 1:4], Rotation.from_quat(table[:, 4:8]).as_matrix()

@@ -1,0 +1,1 @@
+"""Scan waypoints, collision-free transits and the TOPP-RA trajectory."""

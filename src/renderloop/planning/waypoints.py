@@ -1,0 +1,161 @@
+"""Scan waypoints q* = (x, y, z, yaw, q1, q2, q3) for every plant of every row, and the transits between them.
+
+Per plant, the camera visits an ellipse in the vertical plane facing the plant
+(semi-axes from the config) so that the UAV body flies its ellipse `distance`
+from the plant's axis, as in the reference planner. At each point the camera looks
+at the plant's centroid: the yaw exactly, the pitch up to `max_camera_pitch`, and
+the arm's inverse kinematics turns that camera pose into q*. Rows are visited in a
+boustrophedon over bands of rows; each row is scanned on both sides (out along
+one, back along the other) and the transits between scan lines are routed on the
+occupancy grid so that they never cross a table, a plant or the workstation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from itertools import groupby
+
+import numpy as np
+
+from renderloop.config import Config
+from renderloop.errors import UserError
+from renderloop.planning.transit import TransitPlanner
+from renderloop.robot.kinematics import body_to_camera, camera_pose_to_dofs, camera_rotation, homogeneous
+from renderloop.scene.model import Plant, Row, Scene
+
+MAX_TRANSIT_SPACING = 0.4  # m between transit waypoints, so the spline keeps to the checked straight lines
+FOOTPRINT_MARGIN = 0.05  # m added to the robot's radius when routing
+
+
+@dataclass(frozen=True)
+class Waypoint:
+    kind: str  # "start", "scan", "transit" or "end"
+    dofs: np.ndarray  # (7,) x, y, z, yaw, q1, q2, q3
+    plant: int = -1
+    side: str = ""
+    time: float = float("nan")  # when the trajectory passes it, once parameterised
+
+
+def scan_target(plant: Plant) -> np.ndarray:
+    """The point the camera aims at: the plant's axis, halfway up its canopy."""
+    canopy_bottom = plant.position[2] + plant.pot.height
+    return np.array([plant.position[0], plant.position[1], (canopy_bottom + plant.bounds.max[2]) / 2])
+
+
+def footprint_radius(config: Config) -> float:
+    """Horizontal radius that holds the rotors and the arm at any yaw."""
+    robot = config.robot
+    arm_reach = float(np.linalg.norm(body_to_camera(robot.arm, (*robot.arm.nominal_posture, 0.0))[:2, 3])) + 0.03
+    return max(robot.arm_length + robot.prop_radius, arm_reach) + FOOTPRINT_MARGIN
+
+
+def _camera_distance(config: Config) -> float:
+    """Horizontal camera-to-plant distance that puts the body `planner.distance` from the plant."""
+    arm = config.robot.arm
+    q1, q2 = arm.nominal_posture
+    reach = body_to_camera(arm, (q1, q2, -q1 - q2))[0, 3]
+    distance = config.planner.distance - reach
+    if distance <= 0.05:
+        raise UserError(f"planner.distance: {config.planner.distance} m leaves the camera inside the plant (arm reach {reach:.2f} m)")
+    return distance
+
+
+def plant_ellipse(plant: Plant, side: int, walk: int, config: Config) -> list[Waypoint]:
+    """The ellipse of one plant seen from `side` (-1: from -x, +1: from +x), starting behind the walking direction."""
+    planner, arm = config.planner, config.robot.arm
+    target = scan_target(plant)
+    offset = side * _camera_distance(config)
+    half_width, half_height = planner.semi_axes
+    waypoints = []
+    for k in range(planner.points_per_ellipse):
+        angle = 2 * math.pi * k / planner.points_per_ellipse  # k = 0 is the point behind the walking direction
+        camera = target + np.array([offset, -walk * half_width * math.cos(angle), half_height * math.sin(angle)])
+        look = target - camera
+        yaw = math.atan2(look[1], look[0])
+        pitch = float(np.clip(math.atan2(-look[2], math.hypot(look[0], look[1])), -planner.max_camera_pitch, planner.max_camera_pitch))
+        dofs = camera_pose_to_dofs(homogeneous(camera_rotation(yaw, pitch), camera), arm)
+        waypoints.append(Waypoint("scan", dofs, plant.id, "left" if side < 0 else "right"))
+    return waypoints
+
+
+def scan_line(row: Row, scene: Scene, side: int, walk: int, config: Config) -> list[Waypoint]:
+    """Every plant of a row seen from one side, walking along +y (walk=1) or -y (walk=-1)."""
+    plants = sorted((scene.plant(plant_id) for plant_id in row.plants), key=lambda p: walk * p.position[1])
+    return [waypoint for plant in plants for waypoint in plant_ellipse(plant, side, walk, config)]
+
+
+def _rows_in_order(scene: Scene) -> list[Row]:
+    """Bands of rows with the same y, south to north; alternate bands run west-east and east-west."""
+    ordered = []
+    bands = groupby(sorted(scene.rows, key=lambda r: (round(r.table.center[1], 3), r.table.center[0])), key=lambda r: round(r.table.center[1], 3))
+    for index, (_, band) in enumerate(bands):
+        rows = list(band)
+        ordered.extend(rows if index % 2 == 0 else rows[::-1])
+    return ordered
+
+
+def _turn(start_yaw: float, end_yaw: float, midpoint: np.ndarray) -> float:
+    """Signed yaw change; a near half turn goes the way that faces the room's centre halfway,
+    so that going round a row end the camera keeps facing the row, not the wall."""
+    turn = math.remainder(end_yaw - start_yaw, 2 * math.pi)
+    if abs(turn) < 0.75 * math.pi:
+        return turn
+    inward = -np.asarray(midpoint, dtype=float)
+    candidates = (turn, turn - math.copysign(2 * math.pi, turn))
+    return max(candidates, key=lambda c: math.cos(start_yaw + c / 2) * inward[0] + math.sin(start_yaw + c / 2) * inward[1])
+
+
+def _transit(planner: TransitPlanner, a: Waypoint, b: Waypoint) -> list[Waypoint]:
+    """Transit waypoints strictly between a and b: routed corners, densified, q* interpolated by distance."""
+    corners = [a.dofs[:2], *planner.route(a.dofs, b.dofs), b.dofs[:2]]
+    points = [corners[0]]
+    for start, end in zip(corners[:-1], corners[1:]):
+        pieces = max(1, math.ceil(np.linalg.norm(end - start) / MAX_TRANSIT_SPACING))
+        points.extend(start + (end - start) * t for t in np.linspace(0, 1, pieces + 1)[1:])
+    lengths = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    if lengths[-1] < 1e-9:
+        return []
+    turn = _turn(a.dofs[3], b.dofs[3], points[len(points) // 2])
+    transit = []
+    for point, travelled in zip(points[1:-1], lengths[1:-1]):
+        f = travelled / lengths[-1]
+        dofs = a.dofs + f * (b.dofs - a.dofs)
+        dofs[:2] = point
+        dofs[3] = a.dofs[3] + f * turn
+        transit.append(Waypoint("transit", dofs))
+    return transit
+
+
+def plan_waypoints(scene: Scene, config: Config) -> list[Waypoint]:
+    if not scene.plants:
+        raise UserError("scene.json: the scene has no plants to scan")
+    arm = config.robot.arm
+    q1, q2 = arm.nominal_posture
+    targets = np.array([scan_target(plant) for plant in scene.plants])
+    home = np.array([*config.robot.home[:2], targets[:, 2].mean(), 0.0, q1, q2, -q1 - q2])
+    router = TransitPlanner(scene, footprint_radius(config))
+
+    path = [Waypoint("start", home)]
+    for row in _rows_in_order(scene):
+        ys = [scene.plant(p).position[1] for p in row.plants]
+        here = path[-1].dofs[:2]
+        options = [(side, walk) for side in (-1, 1) for walk in (-1, 1)]
+        first_side, walk = min(
+            options,
+            key=lambda o: math.dist(here, (row.table.center[0] + o[0] * config.planner.distance, min(ys) if o[1] > 0 else max(ys))),
+        )
+        for side, direction in ((first_side, walk), (-first_side, -walk)):
+            line = scan_line(row, scene, side, direction, config)
+            for waypoint in line:
+                if not router.grid.is_free(waypoint.dofs):
+                    raise UserError(
+                        f"planner.distance: scan waypoints of plant {waypoint.plant} come within "
+                        f"{router.radius:.2f} m of a table or wall"
+                    )
+            path.extend(_transit(router, path[-1], line[0]))
+            path.extend(line)
+    end = replace(path[0], kind="end")
+    path.extend(_transit(router, path[-1], end))
+    path.append(end)
+    return path

@@ -1,0 +1,1 @@
+"""MuJoCo closed-loop flight and the camera pose log."""

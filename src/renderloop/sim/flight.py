@@ -1,0 +1,163 @@
+"""The closed loop in MuJoCo: cascade PID on the UAV, joint PIDs on the arm, rotors through the rotor model.
+
+Each control tick (100 Hz by default) runs mj_forward once, so that the pose the
+controller reads, the camera pose logged and the model terms used for
+compensation all belong to the same instant, then steps the physics several
+2 ms steps with the controls held (a zero-order hold, as on a flight controller).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from renderloop.config import Config
+from renderloop.control.arm import ArmController
+from renderloop.control.uav import RigidBodyTerms, UavController, UavReference, UavState
+from renderloop.errors import UserError
+from renderloop.robot.mjcf import CAMERA_SITE, JOINT_NAMES
+from renderloop.robot.rotors import RotorModel
+
+ARM = slice(6, 9)  # arm joints in qvel (after the free joint's 6)
+XYZW = [4, 5, 6, 3]  # the free joint's quaternion in qpos, reordered to qx qy qz qw
+
+
+@dataclass(frozen=True)
+class Reference:
+    """Planned DoF q* over time, with derivatives: the trajectory as the controller samples it."""
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+
+
+@dataclass
+class FlightLog:
+    t: np.ndarray
+    position: np.ndarray  # body, world
+    quaternion: np.ndarray  # body, qx qy qz qw
+    joints: np.ndarray
+    rotor_speeds: np.ndarray
+    reference: np.ndarray  # (N, 7)
+    camera_position: np.ndarray
+    camera_rotation: np.ndarray  # (N, 3, 3)
+    contacts: np.ndarray
+    saturated: np.ndarray
+
+
+def yaw_quaternion_wxyz(yaw: float) -> np.ndarray:
+    return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+
+
+class Flight:
+    """One robot in one MuJoCo world, driven tick by tick."""
+
+    def __init__(self, model: mujoco.MjModel, config: Config, seed: int):
+        self.model, self.data = model, mujoco.MjData(model)
+        controller = config.controller
+        self.dt = 1.0 / controller.rate_hz
+        self.substeps = round(self.dt / model.opt.timestep)  # world.xml carries controller.physics_dt
+        if abs(self.substeps * model.opt.timestep - self.dt) > 1e-9:
+            raise UserError("controller.rate_hz: the control period must be a whole number of physics steps")
+        self.rng = np.random.default_rng(np.random.SeedSequence([seed, 0xF1]))
+        self.noise = controller.position_noise_std
+        self.compensate_pitch = controller.compensate_arm_pitch
+        uav = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "uav")
+        self.total_mass = float(model.body_subtreemass[uav])
+        self.rotors = RotorModel(config.robot)
+        self.uav = UavController(controller, self.total_mass, self.rotors)
+        self.arm = ArmController(controller, config.robot.arm.max_torque)
+        self.camera = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, CAMERA_SITE)
+        self.robot_geom = model.geom_bodyid >= uav  # the robot is the last subtree of the world
+        self.joint_qpos = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in JOINT_NAMES]
+        self.speeds = np.zeros(4)
+        self.full_mass = np.zeros((model.nv, model.nv))
+
+    def reset(self, dofs: np.ndarray) -> None:
+        """Hover at q* at rest, rotors at hover speed."""
+        data = self.data
+        mujoco.mj_resetData(self.model, data)
+        data.qpos[:3] = dofs[:3]
+        data.qpos[3:7] = yaw_quaternion_wxyz(dofs[3])
+        data.qpos[self.joint_qpos] = dofs[4:7]
+        self.speeds = np.full(4, self.rotors.hover_speed(self.total_mass))
+        mujoco.mj_forward(self.model, data)
+
+    def contacts(self) -> int:
+        count = self.data.ncon
+        if count == 0:
+            return 0
+        geoms = self.data.contact.geom[:count]
+        return int(np.count_nonzero(self.robot_geom[geoms[:, 0]] != self.robot_geom[geoms[:, 1]]))
+
+    def tick(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> None:
+        """Controls for the reference (q*, q̇*, q̈*) at this instant, then one control period of physics."""
+        data = self.data
+        rotation = self._body_rotation()
+        position = data.qpos[:3].copy()
+        if self.noise > 0:
+            position += self.rng.normal(0.0, self.noise, 3)
+        state = UavState(position, data.qvel[:3].copy(), rotation, data.qvel[3:6].copy())
+        reference = UavReference(q[:3], qd[:3], qdd[:3], float(q[3]), float(qd[3]), float(qdd[3]))
+        mujoco.mj_fullM(self.model, data, self.full_mass)
+
+        joint_ref, joint_rate_ref = q[4:7].copy(), qd[4:7].copy()
+        if self.compensate_pitch:  # the joints are pitch axes: the arm can undo the body's pitch
+            body_pitch = -math.asin(max(-1.0, min(1.0, rotation[2, 0])))  # nose down is positive, like q
+            joint_ref[0] -= body_pitch
+            joint_rate_ref[0] -= data.qvel[4]
+        torques, joint_acceleration = self.arm.torques(
+            data.qpos[self.joint_qpos], data.qvel[ARM], joint_ref, joint_rate_ref, qdd[4:7],
+            self.full_mass[ARM, ARM], data.qfrc_bias[ARM],
+        )
+        terms = RigidBodyTerms(self.full_mass[3:6], data.qfrc_bias[3:6], joint_acceleration)
+        commanded = self.uav.rotor_speeds(state, reference, terms)
+        self.speeds = self.rotors.lag(self.speeds, commanded, self.dt)
+        data.ctrl[:4] = self.speeds**2
+        data.ctrl[4:7] = torques
+        mujoco.mj_step(self.model, data, nstep=self.substeps)
+        mujoco.mj_forward(self.model, data)
+
+    def _body_rotation(self) -> np.ndarray:
+        matrix = np.empty(9)
+        mujoco.mju_quat2Mat(matrix, self.data.qpos[3:7])
+        return matrix.reshape(3, 3)
+
+
+def resample(reference: Reference, rate_hz: float, hold: float) -> Reference:
+    """The trajectory at the control rate, held at its last (resting) sample for `hold` seconds."""
+    t = np.arange(0.0, reference.t[-1] + hold + 1e-9, 1.0 / rate_hz)
+    index = np.minimum(np.searchsorted(reference.t, t - 1e-9), len(reference.t) - 1)
+    exact = np.isclose(reference.t[index], t, atol=1e-9)
+    if not exact.all():
+        columns = [np.column_stack([np.interp(t, reference.t, a[:, k]) for k in range(7)]) for a in (reference.q, reference.qd, reference.qdd)]
+        return Reference(t, *columns)
+    return Reference(t, reference.q[index], reference.qd[index], reference.qdd[index])
+
+
+def fly(model: mujoco.MjModel, config: Config, trajectory: Reference, hold: float = 1.0) -> FlightLog:
+    flight = Flight(model, config, config.seed)
+    reference = resample(trajectory, config.controller.rate_hz, hold)
+    count = len(reference.t)
+    log = FlightLog(
+        t=reference.t, position=np.empty((count, 3)), quaternion=np.empty((count, 4)), joints=np.empty((count, 3)),
+        rotor_speeds=np.empty((count, 4)), reference=reference.q, camera_position=np.empty((count, 3)),
+        camera_rotation=np.empty((count, 3, 3)), contacts=np.zeros(count, dtype=int), saturated=np.zeros(count, dtype=bool),
+    )
+    flight.reset(reference.q[0])
+    data = flight.data
+    for k in range(count):
+        log.position[k] = data.qpos[:3]
+        log.quaternion[k] = data.qpos[XYZW]
+        log.joints[k] = data.qpos[flight.joint_qpos]
+        log.camera_position[k] = data.site_xpos[flight.camera]
+        log.camera_rotation[k] = data.site_xmat[flight.camera].reshape(3, 3)
+        log.contacts[k] = flight.contacts()
+        flight.tick(reference.q[k], reference.qd[k], reference.qdd[k])
+        log.rotor_speeds[k] = flight.speeds
+        log.saturated[k] = flight.uav.saturated
+    return log
