@@ -137,3 +137,11 @@ def test_take_off_point_by_a_wall_is_refused(paper):
     data["robot"]["home"] = (5.9, 0.0, 0.0)
     with pytest.raises(UserError, match="transit start"):
         plan_waypoints(scene, type(config).model_validate(data))
+
+
+def test_a_camera_pitch_the_arm_cannot_reach_is_a_planning_error(paper):
+    config, scene = paper
+    data = config.model_dump()
+    data["robot"]["arm"]["joint_limits"] = (-0.2, 0.2)
+    with pytest.raises(UserError, match=r"cannot aim the camera at plant \d+: joint q3 = .* outside the limits"):
+        plan_waypoints(scene, type(config).model_validate(data))

@@ -21,7 +21,7 @@ import numpy as np
 from renderloop.config import Config
 from renderloop.errors import UserError
 from renderloop.planning.transit import TransitPlanner
-from renderloop.robot.kinematics import body_to_camera, camera_pose_to_dofs, camera_rotation, homogeneous
+from renderloop.robot.kinematics import UnreachablePose, body_to_camera, camera_pose_to_dofs, camera_rotation, homogeneous
 from renderloop.scene.model import Plant, Row, Scene
 
 MAX_TRANSIT_SPACING = 0.4  # m between transit waypoints, so the spline keeps to the checked straight lines
@@ -74,7 +74,10 @@ def plant_ellipse(plant: Plant, side: int, walk: int, config: Config) -> list[Wa
         look = target - camera
         yaw = math.atan2(look[1], look[0])
         pitch = float(np.clip(math.atan2(-look[2], math.hypot(look[0], look[1])), -planner.max_camera_pitch, planner.max_camera_pitch))
-        dofs = camera_pose_to_dofs(homogeneous(camera_rotation(yaw, pitch), camera), arm)
+        try:
+            dofs = camera_pose_to_dofs(homogeneous(camera_rotation(yaw, pitch), camera), arm)
+        except UnreachablePose as reason:
+            raise UserError(f"planner: the arm cannot aim the camera at plant {plant.id}: {reason}") from None
         waypoints.append(Waypoint("scan", dofs, plant.id, "left" if side < 0 else "right"))
     return waypoints
 

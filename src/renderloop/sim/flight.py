@@ -69,8 +69,7 @@ class Flight:
         uav = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "uav")
         self.total_mass = float(model.body_subtreemass[uav])
         self.rotors = RotorModel(config.robot)
-        self.uav = UavController(controller, self.total_mass, self.rotors)
-        self.arm = ArmController(controller, config.robot.arm.max_torque)
+        self.config = config
         self.camera = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, CAMERA_SITE)
         self.robot_geom = model.geom_bodyid >= uav  # the robot is the last subtree of the world
         self.joint_qpos = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in JOINT_NAMES]
@@ -78,7 +77,9 @@ class Flight:
         self.full_mass = np.zeros((model.nv, model.nv))
 
     def reset(self, dofs: np.ndarray) -> None:
-        """Hover at q* at rest, rotors at hover speed."""
+        """Hover at q* at rest, rotors at hover speed, controllers with empty integrators."""
+        self.uav = UavController(self.config.controller, self.total_mass, self.rotors)
+        self.arm = ArmController(self.config.controller, self.config.robot.arm.max_torque)
         data = self.data
         mujoco.mj_resetData(self.model, data)
         data.qpos[:3] = dofs[:3]
@@ -97,7 +98,7 @@ class Flight:
     def tick(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> None:
         """Controls for the reference (q*, q̇*, q̈*) at this instant, then one control period of physics."""
         data = self.data
-        rotation = self._body_rotation()
+        rotation = self.body_rotation()
         position = data.qpos[:3].copy()
         if self.noise > 0:
             position += self.rng.normal(0.0, self.noise, 3)
@@ -122,7 +123,7 @@ class Flight:
         mujoco.mj_step(self.model, data, nstep=self.substeps)
         mujoco.mj_forward(self.model, data)
 
-    def _body_rotation(self) -> np.ndarray:
+    def body_rotation(self) -> np.ndarray:
         matrix = np.empty(9)
         mujoco.mju_quat2Mat(matrix, self.data.qpos[3:7])
         return matrix.reshape(3, 3)
