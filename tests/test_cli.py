@@ -25,7 +25,7 @@ def cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
 
 
 def test_every_verb_has_help():
-    for verb in ([], ["scene"], ["plan"], ["fly"], ["run"]):
+    for verb in ([], ["scene"], ["plan"], ["fly"], ["render"], ["run"]):
         result = subprocess.run([sys.executable, "-m", "renderloop", *verb, "--help"], capture_output=True, text=True)
         assert result.returncode == 0, result.stderr
         assert "Usage" in result.stdout
@@ -63,23 +63,29 @@ def test_half_written_scene_is_completed(monkeypatch, capsys, tmp_path: Path):
     assert not [p for p in out.iterdir() if p.name.endswith(".partial")]
 
 
-RUN_FILES = SCENE_FILES | {"waypoints.csv", "trajectory.csv", "flight.csv", "groundtruth.txt", "flight_paths.png", "tracking_error.png"}
+RUN_FILES = SCENE_FILES | {
+    "waypoints.csv", "trajectory.csv", "flight.csv", "groundtruth.txt", "flight_paths.png", "tracking_error.png",
+    "render.json", "rgb", "depth", "depth_sensor", "masks", "rgb.txt", "depth.txt", "depth_sensor.txt",
+    "camera_info.yaml", "contact_sheet.png",
+}
 
 
 def test_run_on_the_demo_preset_resumes_and_redoes_what_is_stale(monkeypatch, capsys, tmp_path: Path):
+    fast = tmp_path / "fast.yaml"
+    fast.write_text("renderer:\n  backend: raster\ncamera:\n  rate_hz: 0.5\n")
     out = tmp_path / "demo"
-    code, stdout, stderr = cli(monkeypatch, capsys, "run", "--out", str(out))
+    code, stdout, stderr = cli(monkeypatch, capsys, "run", "--config", str(fast), "--out", str(out))
     assert code == 0, stderr
-    assert {"scene (done)", "plan (done)", "fly (done)"} <= {line.split("  ")[0].strip() for line in stderr.splitlines()}
+    assert {"scene (done)", "plan (done)", "fly (done)", "render (done)"} <= {line.split("  ")[0].strip() for line in stderr.splitlines()}
     assert {p.name for p in out.iterdir()} == RUN_FILES
     stamps = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
 
-    code, _, stderr = cli(monkeypatch, capsys, "run", "--out", str(out))
-    assert code == 0 and stderr.count("complete, skipped") == 3
+    code, _, stderr = cli(monkeypatch, capsys, "run", "--config", str(fast), "--out", str(out))
+    assert code == 0 and stderr.count("complete, skipped") == 4
     assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == stamps
 
     flight = (out / "flight.csv").read_bytes()
-    cli(monkeypatch, capsys, "scene", "--out", str(out), "--force")  # an earlier stage redone...
+    cli(monkeypatch, capsys, "scene", "--config", str(fast), "--out", str(out), "--force")  # an earlier stage redone...
     code, stdout, _ = cli(monkeypatch, capsys, "plan", str(out))
     assert code == 0 and "wrote" in stdout  # ...makes the later ones stale
     code, stdout, _ = cli(monkeypatch, capsys, "fly", str(out))

@@ -12,6 +12,7 @@ from typing import Annotated, Optional
 
 import typer
 from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from renderloop import __version__
 from renderloop.config import PRESETS, load_config
@@ -19,6 +20,7 @@ from renderloop.errors import UserError
 from renderloop.io.rundir import read_config
 from renderloop.pipeline import run_pipeline
 from renderloop.planning.stage import run_plan
+from renderloop.render.stage import run_render
 from renderloop.scene.stage import run_scene
 from renderloop.sim.stage import run_fly
 
@@ -71,6 +73,24 @@ def fly(run_dir: RunDir, force: Force = False) -> None:
     """Fly the trajectory in MuJoCo under cascade PID: flight.csv, groundtruth.txt (camera poses, TUM), plots."""
     made = run_fly(run_dir, read_config(run_dir), force)
     typer.echo(f"fly: {'wrote' if made else 'already complete in'} {run_dir}")
+
+
+@app.command()
+def render(
+    run_dir: RunDir,
+    backend: Annotated[Optional[str], typer.Option(help="cycles (photo-realistic) or raster (MuJoCo, fast); default: the config's.")] = None,
+    workers: Annotated[int, typer.Option(min=1, max=256, help="Renderer processes (one scene each).")] = 1,
+    executor: Annotated[str, typer.Option(help="local processes, or ray tasks on a Ray cluster.")] = "local",
+    address: Annotated[Optional[str], typer.Option(help="Ray cluster address (with --executor ray); default: start a local one.")] = None,
+    force: Force = False,
+) -> None:
+    """Render RGB, depth (planar, uint16 at 5000 per metre) and pepper instance masks at every pose of groundtruth.txt."""
+    with Progress(TextColumn("render"), BarColumn(), TextColumn("{task.completed}/{task.total}"), TimeRemainingColumn(),
+                  console=Console(stderr=True)) as bar:
+        task = bar.add_task("render", total=None)
+        made = run_render(run_dir, read_config(run_dir), force, backend, workers, executor, address,
+                          progress=lambda done, total: bar.update(task, completed=done, total=total))
+    typer.echo(f"render: {'wrote' if made else 'already complete in'} {run_dir}")
 
 
 @app.command()

@@ -1,8 +1,8 @@
 """`renderloop run`: every stage in order with one progress display, skipping complete ones.
 
-Stages are listed here in pipeline order; each is a function (run_dir, config, force)
--> bool that returns False when its outputs were already complete. A killed run
-therefore resumes where it stopped.
+Stages are listed here in pipeline order; each is a function (run_dir, config, force,
+progress) -> bool that returns False when its outputs were already complete, and may
+report (done, total) units of work. A killed run therefore resumes where it stopped.
 """
 
 from __future__ import annotations
@@ -13,25 +13,30 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 from renderloop.config import Config
 from renderloop.planning import stage as plan_stage
+from renderloop.render import stage as render_stage
 from renderloop.scene import stage as scene_stage
 from renderloop.sim import stage as fly_stage
+
+ReportFn = Callable[[int, int], None]
 
 
 @dataclass(frozen=True)
 class Stage:
     name: str
     outputs: tuple[str, ...]
-    run: Callable[[Path, Config, bool], bool]
+    run: Callable[[Path, Config, bool, ReportFn], bool]
 
 
 STAGES = (
-    Stage("scene", scene_stage.OUTPUTS, scene_stage.run_scene),
-    Stage("plan", plan_stage.OUTPUTS, plan_stage.run_plan),
-    Stage("fly", fly_stage.OUTPUTS, fly_stage.run_fly),
+    Stage("scene", scene_stage.OUTPUTS, lambda run_dir, config, force, _: scene_stage.run_scene(run_dir, config, force)),
+    Stage("plan", plan_stage.OUTPUTS, lambda run_dir, config, force, _: plan_stage.run_plan(run_dir, config, force)),
+    Stage("fly", fly_stage.OUTPUTS, lambda run_dir, config, force, _: fly_stage.run_fly(run_dir, config, force)),
+    Stage("render", render_stage.OUTPUTS,
+          lambda run_dir, config, force, progress: render_stage.run_render(run_dir, config, force, progress=progress)),
 )
 
 
@@ -39,13 +44,16 @@ def run_pipeline(run_dir: Path, config: Config, force: bool = False, console: Co
     """Run every stage; returns the seconds each one took (0 when it was skipped)."""
     console = console or Console(stderr=True)
     seconds: dict[str, float] = {}
-    columns = (TextColumn("{task.description:<28}"), BarColumn(), TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn())
+    columns = (TextColumn("{task.description:<28}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+               TimeElapsedColumn(), TimeRemainingColumn())
     with Progress(*columns, console=console, transient=False) as progress:
         for stage in STAGES:
             task = progress.add_task(stage.name, total=1)
             start = time.perf_counter()
-            ran = stage.run(run_dir, config, force)
+            report = lambda done, total, task=task: progress.update(task, completed=done, total=total)  # noqa: E731
+            ran = stage.run(run_dir, config, force, report)
             seconds[stage.name] = time.perf_counter() - start if ran else 0.0
             note = "done" if ran else "complete, skipped"
-            progress.update(task, completed=1, description=f"{stage.name} ({note})")
+            total = progress.tasks[task].total or 1
+            progress.update(task, completed=total, total=total, description=f"{stage.name} ({note})")
     return seconds

@@ -6,6 +6,7 @@ Open3D, evo and the SLAM tools read them as they are.
 from __future__ import annotations
 
 import io
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -28,11 +29,18 @@ def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Timestamps (N,), positions (N, 3) and rotation matrices (N, 3, 3)."""
     path = Path(path)
     try:
-        table = np.loadtxt(path, comments="#", ndmin=2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # an empty file is reported below, in one line
+            table = np.loadtxt(path, comments="#", ndmin=2)
     except FileNotFoundError:
         raise UserError(f"{path}: no such file") from None
     except ValueError as exc:
         raise UserError(f"{path}: not a TUM pose file ({str(exc).splitlines()[0]})") from None
-    if table.shape[1] != 8 or not np.all(np.isfinite(table)):
+    if table.size == 0:
+        raise UserError(f"{path}: holds no poses")
+    if table.shape[1] != 8:
         raise UserError(f"{path}: expected lines of 8 numbers: timestamp tx ty tz qx qy qz qw")
+    bad = np.flatnonzero(~np.all(np.isfinite(table), axis=1) | (np.abs(np.linalg.norm(table[:, 4:8], axis=1) - 1.0) > 1e-3))
+    if len(bad):
+        raise UserError(f"{path}: pose {bad[0]} (t={table[bad[0], 0]}) has NaN or a quaternion that is not unit length")
     return table[:, 0], table[:, 1:4], Rotation.from_quat(table[:, 4:8]).as_matrix()

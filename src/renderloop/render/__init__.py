@@ -1,0 +1,1 @@
+"""RGB-D rendering at the flown camera poses: camera model, Cycles and raster backends, executors."""

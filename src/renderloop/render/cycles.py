@@ -1,0 +1,382 @@
+"""Blender Cycles backend: one greenhouse scene per process, then one path-traced RGB-D frame per pose.
+
+The scene is built once (meshes from numpy arrays, procedural materials, randomised
+greenhouse light) and `render()` only moves the camera, so with persistent data Cycles
+keeps its BVH between frames and the per-frame cost is path tracing plus a short sync.
+
+Each frame is written as one multi-layer EXR into a private temp directory and read
+back with `OpenEXR`: that is the one route in bpy 5 that gives the exact float passes
+(Combined, planar Z, Object Index) in background mode. RGB is the Combined pass under
+the "Standard" view transform, which for the sRGB display is the plain sRGB OETF:
+applying it in numpy to the EXR's float pixels is byte-identical to the PNG Blender
+itself would save (checked with `Image.save_render`, dither off), and saves a file.
+
+`bpy` is a process-wide singleton: building a renderer resets it, so constructing a
+second renderer retires the first (its `render()` then raises).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import shutil
+import sys
+import tempfile
+import time
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import bpy
+import numpy as np
+import OpenEXR
+from mathutils import Matrix
+
+from renderloop.config import Config
+from renderloop.render import materials as looks
+from renderloop.render.camera import Intrinsics, to_gl_camera
+from renderloop.render.frame import RenderedFrame
+from renderloop.scene import meshes
+from renderloop.scene.meshes import Mesh
+from renderloop.scene.model import MAX_PEPPER_ID, Scene
+from renderloop.scene.plant_meshes import plant_meshes
+from renderloop.scene.world import TABLE_LEG, TABLE_TOP_THICKNESS, WALL_THICKNESS
+
+__all__ = ["CyclesRenderer", "RenderedFrame", "SceneObject", "greenhouse_objects", "VIEW_TRANSFORM"]
+
+log = logging.getLogger(__name__)
+
+VIEW_TRANSFORM = "Standard"  # plain sRGB OETF; no tone curve a detector would have to unlearn
+LIGHTING_STREAM = 0xC7  # the lighting generator is SeedSequence([scene.seed, LIGHTING_STREAM])
+SENSOR_WIDTH_MM = 36.0  # any value works: the lens is derived from fx and this width
+WORKSTATION_COLUMN = (0.6, 0.05)  # height, radius (as in world.xml)
+DEFAULT_ROOM = (12.0, 10.0, 3.5)
+_PASSES = {"rgb": "ViewLayer.Combined", "z": "ViewLayer.Depth.Z", "index": "ViewLayer.Object Index.X"}
+_active: CyclesRenderer | None = None
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """One Blender object: a numpy mesh, a material name of `materials.greenhouse_materials`,
+    the Object Index pass value, an object colour (sRGB, for materials that read it) and
+    an optional per-vertex sRGB colour (the leaf colour attribute)."""
+
+    name: str
+    mesh: Mesh
+    material: str = "object_color"
+    pass_index: int = 0
+    rgb: tuple[float, float, float] | None = None
+    smooth: bool = False
+    vertex_rgb: np.ndarray | None = None
+
+
+def _table_mesh(center: Sequence[float], size: Sequence[float]) -> Mesh:
+    """A slab on four legs, the same boxes as `world.xml`; `center` is the table's floor-to-top box centre."""
+    x, y, _ = center
+    sx, sy, height = size
+    parts = [meshes.box((x, y, height - TABLE_TOP_THICKNESS / 2), (sx, sy, TABLE_TOP_THICKNESS))]
+    leg_height = height - TABLE_TOP_THICKNESS
+    for dx, dy in ((-1, -1), (-1, 1), (1, -1), (1, 1)):
+        leg = (x + dx * (sx / 2 - TABLE_LEG), y + dy * (sy / 2 - TABLE_LEG), leg_height / 2)
+        parts.append(meshes.box(leg, (TABLE_LEG, TABLE_LEG, leg_height)))
+    return meshes.merge(parts)
+
+
+def greenhouse_objects(scene: Scene) -> list[SceneObject]:
+    """The whole greenhouse as few objects: shared static parts merged, one object per pepper
+    (its pass_index is its id), and per plant one pot, one stem, one leaf and one flower object."""
+    length, width, height = scene.room
+    t = WALL_THICKNESS
+    walls = [
+        meshes.box((sx * (length + t) / 2, 0, height / 2), (t, width + 2 * t, height)) for sx in (-1, 1)
+    ] + [meshes.box((0, sy * (width + t) / 2, height / 2), (length, t, height)) for sy in (-1, 1)]
+    station = scene.workstation
+    column_height, column_radius = WORKSTATION_COLUMN
+    top = (station.center[0], station.center[1], station.size[2])
+    column = meshes.tube(np.array([top, (top[0], top[1], top[2] + column_height)]), column_radius, sides=24)
+    objects = [
+        SceneObject("floor", meshes.box((0, 0, -0.05), (length + 2 * t, width + 2 * t, 0.1)), "floor"),
+        SceneObject("walls", meshes.merge(walls), "wall"),
+        SceneObject("tables", meshes.merge([_table_mesh(row.table.center, row.table.size) for row in scene.rows]), "table"),
+        SceneObject("workstation", meshes.merge([_table_mesh(station.center, station.size), column]), "workstation"),
+    ]
+    for plant in scene.plants:
+        peppers = scene.peppers_of(plant.id)
+        parts = plant_meshes(plant, peppers)
+        objects.append(SceneObject(f"pot_{plant.id}", parts.pot, "pot"))
+        objects.append(SceneObject(f"stem_{plant.id}", parts.stem, "stem", smooth=True))
+        if parts.leaves:
+            colors = np.concatenate([np.tile(leaf.rgb, (len(m.vertices), 1)) for leaf, m in zip(plant.leaves, parts.leaves)])
+            objects.append(SceneObject(f"leaves_{plant.id}", meshes.merge(parts.leaves), "leaf", smooth=True, vertex_rgb=colors))
+        if parts.flowers is not None:
+            objects.append(SceneObject(f"flowers_{plant.id}", parts.flowers, "flower"))
+        for pepper in peppers:
+            objects.append(SceneObject(f"pepper_{pepper.id}", parts.peppers[pepper.id], f"pepper_{pepper.color}",
+                                       pass_index=pepper.id, rgb=tuple(pepper.rgb), smooth=True))
+    return objects
+
+
+def _bpy_mesh(name: str, mesh: Mesh) -> bpy.types.Mesh:
+    """numpy arrays straight into a Blender mesh with foreach_set (no per-element Python)."""
+    data = bpy.data.meshes.new(name)
+    n_faces = len(mesh.faces)
+    data.vertices.add(len(mesh.vertices))
+    data.vertices.foreach_set("co", mesh.vertices.astype(np.float32).ravel())
+    data.loops.add(3 * n_faces)
+    data.loops.foreach_set("vertex_index", mesh.faces.ravel())
+    data.polygons.add(n_faces)
+    data.polygons.foreach_set("loop_start", np.arange(0, 3 * n_faces, 3, dtype=np.int32))
+    if mesh.uv is not None:
+        layer = data.uv_layers.new(name="UVMap")
+        layer.uv.foreach_set("vector", mesh.uv[mesh.faces.ravel()].astype(np.float32).ravel())
+    data.update(calc_edges=True)
+    return data
+
+
+def _seconds(timecode: object) -> float:
+    """Blender's stamp times ("MM:SS.cc" or "HH:MM:SS.cc") to seconds; NaN when absent."""
+    try:
+        fields = str(timecode).strip().split(":")
+        return float(sum(float(value) * 60**power for power, value in enumerate(reversed(fields))))
+    except ValueError:
+        return math.nan
+
+
+def srgb_oetf_u8(linear: np.ndarray) -> np.ndarray:
+    """Standard view transform for the sRGB display, quantised as Blender does (no dither)."""
+    x = np.clip(linear.astype(np.float64), 0.0, 1.0)
+    encoded = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+    return np.floor(encoded * 255.0 + 0.5).astype(np.uint8)
+
+
+class CyclesRenderer:
+    """Path-traced RGB, exact planar depth and the pepper instance mask for camera poses in one scene."""
+
+    def __init__(self, scene: Scene, config: Config, intrinsics: Intrinsics) -> None:
+        rng = np.random.default_rng(np.random.SeedSequence([scene.seed, LIGHTING_STREAM]))
+        self._setup(config, intrinsics, scene.seed, greenhouse_objects(scene), rng, scene.room)
+
+    @classmethod
+    def from_objects(
+        cls,
+        objects: Iterable[SceneObject | tuple[str, Mesh, Sequence[float], int]],
+        config: Config,
+        intrinsics: Intrinsics,
+        seed: int = 0,
+        room: Sequence[float] = DEFAULT_ROOM,
+    ) -> CyclesRenderer:
+        """A renderer of arbitrary meshes (for tests and tools): SceneObjects, or plain
+        (name, mesh, sRGB colour, pass_index) tuples drawn with a plain Principled material.
+        Lighting is the greenhouse's, drawn from `seed`; `room` only sizes the roof fill."""
+        items = [obj if isinstance(obj, SceneObject) else SceneObject(obj[0], obj[1], rgb=tuple(obj[2]), pass_index=int(obj[3]))
+                 for obj in objects]
+        renderer = cls.__new__(cls)
+        rng = np.random.default_rng(np.random.SeedSequence([seed, LIGHTING_STREAM]))
+        renderer._setup(config, intrinsics, seed, items, rng, room)
+        return renderer
+
+    # -- construction -------------------------------------------------------------------------
+
+    def _setup(self, config: Config, intrinsics: Intrinsics, seed: int, objects: list[SceneObject],
+               rng: np.random.Generator, room: Sequence[float]) -> None:
+        global _active
+        if not math.isclose(intrinsics.fx, intrinsics.fy, rel_tol=1e-9):
+            raise ValueError(f"Cycles camera needs square pixels, got fx={intrinsics.fx} fy={intrinsics.fy}")
+        if _active is not None:
+            _active._retire()
+        self._closed = True  # until fully built
+        self.intrinsics = intrinsics
+        self.clip = (float(config.camera.clip[0]), float(config.camera.clip[1]))
+        self._tmp = Path(tempfile.mkdtemp(prefix="renderloop-cycles-"))
+        self._exr = self._tmp / "frame.exr"
+        try:
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+            bpy.context.preferences.filepaths.use_scripts_auto_execute = False
+            self._scene = bpy.context.scene
+            self._configure(config, seed)
+            self._camera = self._add_camera(intrinsics)
+            self.lighting = looks.greenhouse_lighting(self._scene, rng, room)
+            self._add_objects(objects)
+        except BaseException:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            raise
+        self._closed = False
+        _active = self
+
+    def _configure(self, config: Config, seed: int) -> None:
+        """Render settings: everything that could vary between runs is pinned."""
+        r, s = config.renderer, self._scene
+        s.render.engine = "CYCLES"
+        c = s.cycles
+        c.device = "CPU"
+        c.samples = r.samples
+        c.use_adaptive_sampling = r.adaptive_threshold > 0
+        if r.adaptive_threshold > 0:
+            c.adaptive_threshold = r.adaptive_threshold
+        c.seed = seed & 0x7FFFFFFF
+        c.use_animated_seed = False
+        denoise = r.denoise
+        if denoise and not _oidn_available():
+            log.warning("Cycles was built without OpenImageDenoise: rendering without denoising")
+            denoise = False
+        c.use_denoising = denoise
+        if denoise:
+            c.denoiser = "OPENIMAGEDENOISE"
+            c.denoising_use_gpu = False
+            c.denoising_input_passes = "RGB_ALBEDO_NORMAL"
+            c.denoising_prefilter = "ACCURATE"
+            c.denoising_quality = "HIGH"
+        # Short paths: a lit canopy needs few bounces, and clamping keeps fireflies out of 16 spp.
+        c.max_bounces, c.diffuse_bounces, c.glossy_bounces = 6, 3, 3
+        c.transmission_bounces, c.transparent_max_bounces, c.volume_bounces = 4, 4, 0
+        c.caustics_reflective = c.caustics_refractive = False
+        c.sample_clamp_indirect = 10.0
+        s.render.use_persistent_data = r.persistent_data
+        s.render.threads_mode = "FIXED" if r.threads > 0 else "AUTO"
+        if r.threads > 0:
+            s.render.threads = r.threads
+        s.render.resolution_x, s.render.resolution_y = self.intrinsics.width, self.intrinsics.height
+        s.render.resolution_percentage = 100
+        s.render.pixel_aspect_x = s.render.pixel_aspect_y = 1.0
+        s.render.film_transparent = False
+        s.render.dither_intensity = 0.0
+        s.render.use_compositing = s.render.use_sequencer = False
+        s.display_settings.display_device = "sRGB"
+        s.view_settings.view_transform = VIEW_TRANSFORM
+        s.view_settings.look = "None"
+        s.view_settings.exposure, s.view_settings.gamma = 0.0, 1.0
+        layer = s.view_layers[0]
+        layer.use_pass_combined = layer.use_pass_z = layer.use_pass_object_index = True
+        image = s.render.image_settings
+        image.media_type = "MULTI_LAYER_IMAGE"
+        image.color_depth, image.exr_codec = "32", "NONE"  # full float Z; no codec time for a file read once
+        s.render.filepath = str(self._exr)
+        s.render.use_file_extension = False
+
+    def _add_camera(self, intrinsics: Intrinsics) -> bpy.types.Object:
+        """Pinhole from the intrinsics: fx = lens * W / sensor_width (sensor fit horizontal); the
+        shifts move the principal point off (W-1)/2, (H-1)/2 and are in units of W for that fit."""
+        data = bpy.data.cameras.new("camera")
+        data.sensor_fit = "HORIZONTAL"
+        data.sensor_width = SENSOR_WIDTH_MM
+        data.lens = intrinsics.fx * SENSOR_WIDTH_MM / intrinsics.width
+        data.shift_x = ((intrinsics.width - 1) / 2 - intrinsics.cx) / intrinsics.width
+        data.shift_y = (intrinsics.cy - (intrinsics.height - 1) / 2) / intrinsics.width
+        data.clip_start, data.clip_end = self.clip
+        camera = bpy.data.objects.new("camera", data)
+        self._scene.collection.objects.link(camera)
+        self._scene.camera = camera
+        return camera
+
+    def _add_objects(self, objects: list[SceneObject]) -> None:
+        materials = looks.greenhouse_materials()
+        for item in objects:
+            if not 0 <= item.pass_index <= MAX_PEPPER_ID:
+                raise ValueError(f"{item.name}: pass_index {item.pass_index} outside 0..{MAX_PEPPER_ID}")
+            if len(item.mesh.faces) == 0:
+                continue
+            data = _bpy_mesh(item.name, item.mesh)
+            if item.vertex_rgb is not None:
+                linear = looks.srgb_to_linear_array(np.asarray(item.vertex_rgb, dtype=float).reshape(-1, 3))
+                rgba = np.column_stack([linear, np.ones(len(linear))]).astype(np.float32)
+                data.attributes.new(looks.LEAF_COLOR_ATTRIBUTE, "FLOAT_COLOR", "POINT").data.foreach_set("color", rgba.ravel())
+            if item.smooth:
+                data.shade_smooth()
+            data.materials.append(materials[item.material])
+            obj = bpy.data.objects.new(item.name, data)
+            obj.pass_index = item.pass_index
+            if item.rgb is not None:
+                obj.color = (*looks.srgb_to_linear(item.rgb), 1.0)
+            self._scene.collection.objects.link(obj)
+
+    # -- rendering ----------------------------------------------------------------------------
+
+    def render(self, pose: np.ndarray) -> RenderedFrame:
+        """Render the optical-frame pose T_world_optical (4x4)."""
+        if self._closed:
+            raise RuntimeError("CyclesRenderer is closed (or another renderer replaced its Blender scene)")
+        pose = np.asarray(pose, dtype=float)
+        if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
+            raise ValueError("pose must be a finite 4x4 transform")
+        if not np.allclose(pose[:3, :3] @ pose[:3, :3].T, np.eye(3), atol=1e-6):
+            raise ValueError("pose rotation is not orthonormal")
+        start = time.perf_counter()
+        self._camera.matrix_world = Matrix(to_gl_camera(pose).tolist())
+        self._exr.unlink(missing_ok=True)
+        with _quiet_stdout():
+            bpy.ops.render.render(write_still=True)
+        rendered = time.perf_counter()
+        frame = self._read()
+        frame.timings["render_call"] = rendered - start
+        frame.timings["readback"] = time.perf_counter() - rendered
+        frame.timings["total"] = time.perf_counter() - start
+        return frame
+
+    def _read(self) -> RenderedFrame:
+        if not self._exr.exists():
+            raise RuntimeError(f"Cycles wrote no image to {self._exr}")
+        channels: dict[str, np.ndarray] = {}
+        with OpenEXR.File(str(self._exr)) as exr:
+            header = dict(exr.parts[0].header)
+            for part in exr.parts:
+                for name, channel in part.channels.items():
+                    channels[name] = np.array(channel.pixels)  # copy out of the file's buffers
+        missing = [name for name in _PASSES.values() if name not in channels]
+        if missing:
+            raise RuntimeError(f"Cycles EXR lacks passes {missing} (has {sorted(channels)})")
+        z = channels[_PASSES["z"]]
+        near, far = self.clip
+        depth = np.where(np.isfinite(z) & (z >= near) & (z <= far), z, 0.0).astype(np.float32)
+        mask = np.rint(channels[_PASSES["index"]]).clip(0, MAX_PEPPER_ID).astype(np.uint16)
+        rgb = srgb_oetf_u8(channels[_PASSES["rgb"]][..., :3])
+        timings = {key: _seconds(header.get(f"cycles.ViewLayer.{key}")) for key in ("render_time", "synchronization_time")}
+        return RenderedFrame(rgb=rgb, depth=depth, mask=mask, timings=timings)
+
+    # -- lifetime -----------------------------------------------------------------------------
+
+    def _retire(self) -> None:
+        global _active
+        self._closed = True
+        shutil.rmtree(self._tmp, ignore_errors=True)
+        if _active is self:
+            _active = None
+
+    def close(self) -> None:
+        """Delete the temp files and free Blender's copy of the scene. Idempotent."""
+        was_active = _active is self
+        self._retire()
+        if was_active:
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+            bpy.context.preferences.filepaths.use_scripts_auto_execute = False
+
+    def __enter__(self) -> CyclesRenderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@contextmanager
+def _quiet_stdout() -> Iterator[None]:
+    """Blender prints a progress line per render from C, past Python's sys.stdout; it would
+    tear through the progress display, so file descriptor 1 points at /dev/null meanwhile."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+def _oidn_available() -> bool:
+    try:
+        import _cycles
+
+        return bool(getattr(_cycles, "with_openimagedenoise", False))
+    except ImportError:
+        return False

@@ -1,0 +1,152 @@
+"""Where frames are rendered: in this process, on N local processes, or as Ray actors.
+
+A worker holds one renderer (one Blender scene, or one MuJoCo GL context), built once,
+and renders chunks of frame indices; it returns encoded PNGs instead of writing them,
+so the driver is the only writer (atomic renames, one progress count) and a Ray
+worker on another machine needs no shared file system: it receives the config, the
+scene and the poses, not paths.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing import get_context
+
+import numpy as np
+
+from renderloop.config import Config
+from renderloop.errors import UserError
+from renderloop.render.camera import Intrinsics
+from renderloop.render.depth_noise import sensor_depth
+from renderloop.render.frames import encode_frame
+from renderloop.scene.model import Scene
+
+BACKENDS = ("cycles", "raster")
+CHUNK = 4  # frames per task: large enough to amortise a task, small enough to balance 2 workers
+
+Rendered = list[tuple[int, dict[str, bytes], dict[str, float]]]
+
+
+def make_renderer(backend: str, scene: Scene, config: Config, intrinsics: Intrinsics):
+    if backend == "raster":
+        from renderloop.render.raster import RasterRenderer
+
+        return RasterRenderer(scene, config, intrinsics)
+    if backend == "cycles":
+        from renderloop.render.cycles import CyclesRenderer
+
+        return CyclesRenderer(scene, config, intrinsics)
+    raise UserError(f"unknown backend {backend!r} (choose from: {', '.join(BACKENDS)})")
+
+
+class FrameWorker:
+    """Renders frames of one run; everything it needs travels with it (picklable)."""
+
+    def __init__(self, config: Config, scene: Scene, poses: np.ndarray, backend: str):
+        self.config, self.poses = config, poses
+        self.renderer = make_renderer(backend, scene, config, Intrinsics.from_config(config.camera))
+
+    def render(self, indices: list[int]) -> Rendered:
+        rendered = []
+        noise = self.config.renderer.depth_noise
+        for index in indices:
+            frame = self.renderer.render(self.poses[index])
+            sensor = None
+            if noise.enabled:  # seeded per frame, so the result does not depend on which worker drew it
+                rng = np.random.default_rng(np.random.SeedSequence([self.config.seed, 0xD3, index]))
+                sensor = sensor_depth(frame.depth, noise, self.config.camera.clip, rng)
+            rendered.append((index, encode_frame(frame, sensor), frame.timings))
+        return rendered
+
+    def close(self) -> None:
+        self.renderer.close()
+
+
+def _chunks(indices: list[int]) -> list[list[int]]:
+    return [indices[i : i + CHUNK] for i in range(0, len(indices), CHUNK)]
+
+
+def _threads_per_worker(config: Config, workers: int) -> Config:
+    """N renderers on N processes share the cores instead of each taking all of them."""
+    if workers <= 1 or config.renderer.threads:
+        return config
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    return config.model_copy(update={"renderer": config.renderer.model_copy(update={"threads": threads})})
+
+
+_process_worker: FrameWorker | None = None
+
+
+def _start_process_worker(config: Config, scene: Scene, poses: np.ndarray, backend: str) -> None:
+    global _process_worker
+    _process_worker = FrameWorker(config, scene, poses, backend)
+
+
+def _render_in_process_worker(indices: list[int]) -> Rendered:
+    assert _process_worker is not None
+    return _process_worker.render(indices)
+
+
+def render_local(config: Config, scene: Scene, poses: np.ndarray, backend: str, indices: list[int], workers: int) -> Iterator[Rendered]:
+    if workers <= 1:
+        worker = FrameWorker(config, scene, poses, backend)
+        try:
+            for chunk in _chunks(indices):
+                yield worker.render(chunk)
+        finally:
+            worker.close()
+        return
+    config = _threads_per_worker(config, workers)
+    # spawn, not fork: neither Blender nor an OpenGL context survives a fork
+    with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_start_process_worker,
+                             initargs=(config, scene, poses, backend)) as pool:
+        futures = [pool.submit(_render_in_process_worker, chunk) for chunk in _chunks(indices)]
+        for future in as_completed(futures):
+            yield future.result()
+
+
+def _check_answers(address: str, timeout: float = 3.0) -> None:
+    """Ray retries an unanswered address for minutes; a plain TCP connect says no in seconds."""
+    if address == "auto":
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    try:
+        socket.create_connection((host or "127.0.0.1", int(port)), timeout=timeout).close()
+    except (OSError, ValueError):
+        raise UserError(f"--address {address}: no Ray cluster answers there") from None
+
+
+def render_ray(config: Config, scene: Scene, poses: np.ndarray, backend: str, indices: list[int], workers: int, address: str | None) -> Iterator[Rendered]:
+    import ray
+
+    started_here = not ray.is_initialized()
+    if started_here:
+        try:
+            if address:
+                _check_answers(address)
+                ray.init(address=address, log_to_driver=False)
+            else:
+                ray.init(num_cpus=max(workers, 1), include_dashboard=False, log_to_driver=False)
+        except (ConnectionError, RuntimeError, ValueError) as error:
+            raise UserError(f"--address {address}: no Ray cluster answers there ({str(error).splitlines()[0]})") from None
+    try:
+        config = _threads_per_worker(config, workers)
+        actor = ray.remote(num_cpus=1)(FrameWorker)
+        actors = [actor.remote(config, scene, poses, backend) for _ in range(max(workers, 1))]
+        pending, chunks = {}, _chunks(indices)
+        for worker in actors:  # one chunk in flight per actor; the next goes to whichever finishes first
+            if chunks:
+                pending[worker.render.remote(chunks.pop(0))] = worker
+        while pending:
+            [done], _ = ray.wait(list(pending), num_returns=1)
+            worker = pending.pop(done)
+            if chunks:
+                pending[worker.render.remote(chunks.pop(0))] = worker
+            yield ray.get(done)
+    finally:
+        if started_here:
+            ray.shutdown()
+

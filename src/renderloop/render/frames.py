@@ -1,0 +1,88 @@
+"""Frame files of a run: rgb/, depth/, masks/ (and depth_sensor/), one PNG per camera pose.
+
+Depth PNGs are uint16 at 5000 units per metre (TUM), 0 = no return; masks are uint16
+instance ids, 0 = background. Every file is written under a temporary name and
+renamed, and a frame counts as done only when all of its files exist, so a render
+killed at any moment resumes without a missing, duplicated or half-written frame.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from renderloop.errors import UserError
+from renderloop.io.atomic import write_bytes
+from renderloop.render.frame import RenderedFrame
+
+DEPTH_SCALE = 5000.0  # PNG units per metre (TUM RGB-D)
+MAX_DEPTH = 65535 / DEPTH_SCALE
+
+
+def frame_name(index: int) -> str:
+    return f"{index:06d}.png"
+
+
+def frame_paths(run_dir: Path, index: int, sensor: bool) -> dict[str, Path]:
+    names = ["rgb", "depth", "masks"] + (["depth_sensor"] if sensor else [])
+    return {name: run_dir / name / frame_name(index) for name in names}
+
+
+def frame_done(run_dir: Path, index: int, sensor: bool) -> bool:
+    return all(path.is_file() for path in frame_paths(run_dir, index, sensor).values())
+
+
+def _png(array: np.ndarray) -> bytes:
+    buffer = io.BytesIO()
+    Image.fromarray(array).save(buffer, format="PNG")
+    return buffer.getvalue()
+
+
+def encode_depth(depth: np.ndarray) -> np.ndarray:
+    """Metres to TUM uint16; beyond what uint16 holds (13.1 m) counts as no return."""
+    units = np.rint(np.where((depth > 0) & (depth <= MAX_DEPTH), depth, 0.0) * DEPTH_SCALE)
+    return units.astype(np.uint16)
+
+
+def decode_depth(units: np.ndarray) -> np.ndarray:
+    return units.astype(np.float32) / DEPTH_SCALE
+
+
+def encode_frame(frame: RenderedFrame, sensor_depth: np.ndarray | None) -> dict[str, bytes]:
+    """PNG bytes of each file of a frame, keyed by directory; workers send these to the one writer."""
+    files = {"rgb": _png(frame.rgb), "depth": _png(encode_depth(frame.depth))}
+    if sensor_depth is not None:
+        files["depth_sensor"] = _png(encode_depth(sensor_depth))
+    files["masks"] = _png(frame.mask.astype(np.uint16))
+    return files
+
+
+def write_frame(run_dir: Path, index: int, files: dict[str, bytes]) -> None:
+    """Masks last: its presence says the frame's other files are complete too."""
+    for name in sorted(files, key=lambda n: n == "masks"):
+        path = run_dir / name / frame_name(index)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_bytes(path, files[name])
+
+
+def read_png(path: Path, dtype: type) -> np.ndarray:
+    try:
+        with Image.open(path) as image:
+            array = np.array(image)
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such file") from None
+    except (OSError, ValueError, SyntaxError):
+        raise UserError(f"{path}: not a readable PNG") from None
+    return array.astype(dtype)
+
+
+def read_frame(run_dir: Path, index: int) -> RenderedFrame:
+    paths = frame_paths(run_dir, index, sensor=False)
+    return RenderedFrame(
+        rgb=read_png(paths["rgb"], np.uint8),
+        depth=decode_depth(read_png(paths["depth"], np.uint16)),
+        mask=read_png(paths["masks"], np.uint16),
+    )

@@ -1,0 +1,110 @@
+"""Real Cycles renders, tiny and few samples: the depth, projection and mask conventions hold."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from renderloop.config import load_config
+from renderloop.render.camera import Intrinsics
+from renderloop.render.cycles import CyclesRenderer
+from renderloop.robot.kinematics import camera_rotation, homogeneous, look_at
+from renderloop.scene import meshes
+from renderloop.scene.generate import generate_scene
+
+
+def small_config(width: int = 96, height: int = 72):
+    data = load_config("demo").model_dump(mode="json")
+    data["camera"].update(width=width, height=height)
+    data["renderer"].update(samples=4, denoise=False)
+    return type(load_config("demo")).model_validate(data)
+
+
+def plane_depth(intrinsics: Intrinsics, pose: np.ndarray, point: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Analytic planar depth of the plane through `point` with `normal`, per pixel."""
+    u, v = np.meshgrid(np.arange(intrinsics.width), np.arange(intrinsics.height))
+    rays = np.stack([(u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy, np.ones(u.shape)], axis=-1)
+    world = rays @ pose[:3, :3].T
+    return ((point - pose[:3, 3]) @ normal) / (world @ normal)
+
+
+@pytest.mark.parametrize("tilt_deg", [0.0, 30.0])
+def test_depth_of_a_plane_at_a_known_distance(tilt_deg):
+    config = small_config()
+    intrinsics = Intrinsics.from_config(config.camera)
+    tilt = math.radians(tilt_deg)
+    normal = np.array([-math.cos(tilt), math.sin(tilt), 0.0])  # facing the camera, turned about z
+    centre = np.array([1.5, 0.0, 1.0])
+    quad = meshes.box(centre, (0.002, 6.0, 6.0))
+    rotation = np.array([[math.cos(tilt), math.sin(tilt), 0], [-math.sin(tilt), math.cos(tilt), 0], [0, 0, 1]])
+    plane = quad.transformed(rotation, centre - rotation @ centre)
+    pose = homogeneous(camera_rotation(0.0, 0.0), (0.0, 0.0, 1.0))
+    face = centre - 0.001 * rotation[:, 0]  # the box's face towards the camera
+    with CyclesRenderer.from_objects([("plane", plane, (0.5, 0.5, 0.5), 0)], config, intrinsics) as renderer:
+        frame = renderer.render(pose)
+    expected = plane_depth(intrinsics, pose, face, normal)
+    middle = (intrinsics.height // 2, intrinsics.width // 2)
+    assert frame.depth.min() > 0
+    assert abs(frame.depth[middle] - expected[middle]) < 1e-3
+    assert np.abs(frame.depth / expected - 1).max() < 0.005
+
+
+def test_a_point_projects_where_the_intrinsics_say():
+    config = small_config(120, 90)
+    intrinsics = Intrinsics.from_config(config.camera)
+    pose = homogeneous(camera_rotation(0.2, -0.1), (0.3, -0.2, 1.1))
+    target_optical = np.array([0.12, -0.07, 1.2])
+    target = pose[:3, :3] @ target_optical + pose[:3, 3]
+    heights = np.linspace(-0.999, 0.999, 41) * 0.02
+    ball = meshes.tube(target + np.column_stack([0 * heights, 0 * heights, heights]), np.sqrt(0.02**2 - heights**2), sides=48)
+    backdrop = meshes.box(pose[:3, :3] @ np.array([0, 0, 5.0]) + pose[:3, 3], (4, 4, 4))  # a wall 3 m away
+    objects = [("ball", ball, (0.8, 0.1, 0.1), 7), ("wall", backdrop, (0.6, 0.6, 0.6), 0)]
+    with CyclesRenderer.from_objects(objects, config, intrinsics) as renderer:
+        frame = renderer.render(pose)
+    rows, cols = np.nonzero(frame.mask == 7)
+    assert len(rows) > 10
+    u, v = intrinsics.project(target_optical)[0]
+    assert abs(cols.mean() - u) < 0.5 and abs(rows.mean() - v) < 0.5
+    nearest = int(np.rint(v)), int(np.rint(u))
+    assert frame.mask[nearest] == 7
+    assert frame.depth[nearest] == pytest.approx(target_optical[2] - 0.02, abs=3e-3)  # the near surface
+
+
+@pytest.fixture(scope="module")
+def greenhouse():
+    config = small_config(160, 120)
+    scene = generate_scene(config)
+    intrinsics = Intrinsics.from_config(config.camera)
+    pepper = scene.peppers[0]
+    side = -1.0 if pepper.side == "left" else 1.0
+    pose = look_at(np.array(pepper.center) + np.array([side * 0.45, 0.05, 0.08]), pepper.center)
+    with CyclesRenderer(scene, config, intrinsics) as renderer:
+        frames = [renderer.render(pose), renderer.render(pose)]
+    return scene, intrinsics, pose, pepper, frames
+
+
+def test_greenhouse_frame_masks_and_depth_agree_with_the_scene(greenhouse):
+    scene, intrinsics, pose, pepper, (frame, _) = greenhouse
+    assert pepper.id in frame.mask
+    world_to_camera = np.linalg.inv(pose)
+    centre = world_to_camera[:3, :3] @ pepper.center + world_to_camera[:3, 3]
+    u, v = np.rint(intrinsics.project(centre)[0]).astype(int)
+    assert frame.mask[v, u] == pepper.id
+    assert centre[2] - pepper.radius - 0.01 <= frame.depth[v, u] <= centre[2] + 0.01
+    for pid in np.unique(frame.mask[frame.mask > 0]):
+        other = next(p for p in scene.peppers if p.id == pid)
+        rows, cols = np.nonzero(frame.mask == pid)
+        points = intrinsics.back_project(np.column_stack([cols, rows]), frame.depth[rows, cols])
+        world = points @ pose[:3, :3].T + pose[:3, 3]
+        assert np.linalg.norm(world - other.center, axis=1).max() <= 1.5 * other.radius
+
+
+def test_same_scene_and_pose_same_images(greenhouse):
+    *_, (first, second) = greenhouse
+    assert np.array_equal(first.rgb, second.rgb)
+    assert np.array_equal(first.depth, second.depth)
+    assert np.array_equal(first.mask, second.mask)
+    assert first.timings["render_time"] > 0 and first.timings["total"] >= first.timings["render_time"]
+    assert first.rgb.std() > 10  # an image, not a blank

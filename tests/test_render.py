@@ -1,0 +1,187 @@
+"""Rendering with the raster backend (fast); tests/test_cycles.py holds the real Cycles renders."""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from renderloop.errors import UserError
+from renderloop.io.rundir import read_config
+from renderloop.render.camera import Intrinsics, read_camera_info, to_gl_camera
+from renderloop.render.frames import read_frame
+from renderloop.render.raster import RasterRenderer
+from renderloop.render.stage import load_poses, run_render
+from renderloop.robot.kinematics import camera_rotation, homogeneous, look_at
+from renderloop.scene.stage import run_scene
+from renderloop.planning.stage import run_plan
+from renderloop.sim.stage import run_fly
+from renderloop.config import load_config
+
+
+def wall_depth(intrinsics: Intrinsics, pose: np.ndarray, wall_x: float) -> np.ndarray:
+    """Analytic planar depth of the plane x = wall_x for every pixel."""
+    u, v = np.meshgrid(np.arange(intrinsics.width), np.arange(intrinsics.height))
+    rays = np.stack([(u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy, np.ones_like(u, float)], axis=-1)
+    world_x = rays @ pose[:3, :3][0]
+    return (wall_x - pose[0, 3]) / world_x
+
+
+@pytest.fixture(scope="module")
+def raster(demo):
+    config, scene = demo
+    intrinsics = Intrinsics.from_config(config.camera)
+    with RasterRenderer(scene, config, intrinsics) as renderer:
+        yield config, scene, intrinsics, renderer
+
+
+@pytest.mark.parametrize("yaw_deg", [0.0, 30.0])
+def test_depth_of_a_plane_at_a_known_distance(raster, yaw_deg):
+    config, scene, intrinsics, renderer = raster
+    wall_x = scene.room[0] / 2
+    pose = homogeneous(camera_rotation(math.radians(yaw_deg), 0.0), (wall_x - 1.5, -1.0, 1.6))
+    frame = renderer.render(pose)
+    expected = wall_depth(intrinsics, pose, wall_x)
+    centre = (intrinsics.height // 2, intrinsics.width // 2)
+    assert frame.depth.min() > 0
+    assert abs(frame.depth[centre] - expected[centre]) < 1e-3
+    assert np.abs(frame.depth / expected - 1).max() < 0.005
+    assert not frame.mask.any()
+
+
+def test_intrinsics_project_and_back_project():
+    intrinsics = Intrinsics.from_config(load_config("paper").camera)
+    assert (intrinsics.cx, intrinsics.cy) == (319.5, 239.5)
+    points = np.array([[0.1, -0.2, 1.5], [0.0, 0.0, 0.7], [-0.3, 0.25, 2.0]])
+    pixels = intrinsics.project(points)
+    assert np.allclose(pixels[1], [319.5, 239.5])
+    assert np.allclose(intrinsics.back_project(pixels, points[:, 2]), points)
+    gl = to_gl_camera(homogeneous(camera_rotation(0.3, 0.2), (1, 2, 3)))
+    assert np.allclose(-gl[:3, 2], camera_rotation(0.3, 0.2)[:, 2])  # the GL camera looks down its -z
+
+
+def test_pepper_pixels_are_on_the_pepper(raster):
+    config, scene, intrinsics, renderer = raster
+    seen = 0
+    for pepper in scene.peppers:
+        side = -1.0 if pepper.side == "left" else 1.0
+        camera = np.array(pepper.center) + np.array([side * 0.45, 0.05, 0.08])
+        pose = look_at(camera, pepper.center)
+        frame = renderer.render(pose)
+        world_to_camera = np.linalg.inv(pose)
+        centre = world_to_camera[:3, :3] @ pepper.center + world_to_camera[:3, 3]
+        u, v = np.rint(intrinsics.project(centre)[0]).astype(int)
+        if frame.mask[v, u] == pepper.id:
+            assert centre[2] - pepper.radius - 0.01 <= frame.depth[v, u] <= centre[2] + 0.01
+            seen += 1
+        for pid in np.unique(frame.mask[frame.mask > 0]):
+            other = next(p for p in scene.peppers if p.id == pid)
+            rows, cols = np.nonzero(frame.mask == pid)
+            points = intrinsics.back_project(np.column_stack([cols, rows]), frame.depth[rows, cols])
+            world = (pose[:3, :3] @ points.T).T + pose[:3, 3]
+            assert np.linalg.norm(world - other.center, axis=1).max() <= 1.5 * other.radius
+    assert seen >= len(scene.peppers) // 2
+
+
+@pytest.fixture()
+def flown(tmp_path: Path) -> Path:
+    config = load_config("demo")
+    data = config.model_dump(mode="json")
+    data["renderer"]["backend"] = "raster"
+    data["camera"]["rate_hz"] = 0.25  # a few frames are enough here
+    config = type(config).model_validate(data)
+    run_dir = tmp_path / "run"
+    run_scene(run_dir, config)
+    run_plan(run_dir, config)
+    run_fly(run_dir, config)
+    return run_dir
+
+
+def _files(run_dir: Path) -> dict[str, bytes]:
+    names = ("rgb", "depth", "depth_sensor", "masks")
+    return {f"{d}/{p.name}": p.read_bytes() for d in names for p in sorted((run_dir / d).iterdir())} | {
+        name: (run_dir / name).read_bytes() for name in ("rgb.txt", "depth.txt", "camera_info.yaml")
+    }
+
+
+def test_render_writes_the_run_files(flown: Path):
+    config = read_config(flown)
+    assert run_render(flown, config)
+    times, poses = load_poses(flown)
+    assert len(list((flown / "rgb").iterdir())) == len(poses)
+    rgb_index = [line.split() for line in (flown / "rgb.txt").read_text().splitlines() if not line.startswith("#")]
+    assert [float(t) for t, _ in rgb_index] == pytest.approx(times) and rgb_index[0][1] == "rgb/000000.png"
+    assert read_camera_info(flown / "camera_info.yaml") == Intrinsics.from_config(config.camera)
+    frame = read_frame(flown, 3)
+    assert frame.rgb.shape == (config.camera.height, config.camera.width, 3)
+    assert frame.depth.dtype == np.float32 and frame.mask.dtype == np.uint16
+    assert not run_render(flown, config)  # complete: skipped
+
+
+def test_killed_render_resumes_to_the_same_files(flown: Path, tmp_path: Path):
+    config = read_config(flown)
+    reference = tmp_path / "reference"
+    os.system(f"cp -r {flown} {reference}")
+    run_render(reference, config)
+
+    class Killed(Exception):
+        pass
+
+    def die_after_five(done: int, total: int) -> None:
+        if done >= 5:
+            raise Killed
+
+    with pytest.raises(Killed):
+        run_render(flown, config, progress=die_after_five)
+    assert not (flown / "rgb.txt").exists()
+    assert run_render(flown, config)
+    assert _files(flown) == _files(reference)
+    assert not list(flown.rglob("*.partial"))
+
+
+def test_two_workers_and_ray_give_the_same_files(flown: Path, tmp_path: Path):
+    config = read_config(flown)
+    copies = {name: tmp_path / name for name in ("one", "two", "ray")}
+    for copy in copies.values():
+        os.system(f"cp -r {flown} {copy}")
+    run_render(copies["one"], config)
+    run_render(copies["two"], config, workers=2)
+    run_render(copies["ray"], config, workers=2, executor="ray")
+    assert _files(copies["two"]) == _files(copies["one"])
+    assert _files(copies["ray"]) == _files(copies["one"])
+
+
+def test_changed_poses_start_the_render_over(flown: Path):
+    config = read_config(flown)
+    run_render(flown, config)
+    text = (flown / "groundtruth.txt").read_text().splitlines()
+    (flown / "groundtruth.txt").write_text("\n".join(line for line in text if not line.startswith("#"))[: -1] + "1\n")
+    assert run_render(flown, config)  # the last pose moved a little: the frames were redone, not reused
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("", "holds no poses"),
+        ("# only a comment\n", "holds no poses"),
+        ("0.0 1 2 3 0 0 0 1\n0.2 1 2 nan 0 0 0 1\n", "pose 1 (t=0.2) has NaN"),
+        ("0.0 1 2 3 0 0 0 2\n", "not unit length"),
+        ("0.0 1 2 3\n", "expected lines of 8 numbers"),
+    ],
+)
+def test_bad_groundtruth_is_refused(flown: Path, content: str, message: str):
+    (flown / "groundtruth.txt").write_text(content)
+    with pytest.raises(UserError, match=re.escape(message)):
+        run_render(flown, read_config(flown))
+
+
+def test_unknown_backend_and_unanswering_ray(flown: Path):
+    config = read_config(flown)
+    with pytest.raises(UserError, match="unknown backend 'opengl'"):
+        run_render(flown, config, backend="opengl")
+    with pytest.raises(UserError, match="--address 127.0.0.1:1: no Ray cluster answers there"):
+        run_render(flown, config, executor="ray", address="127.0.0.1:1")
