@@ -108,3 +108,27 @@ def test_same_scene_and_pose_same_images(greenhouse):
     assert np.array_equal(first.mask, second.mask)
     assert first.timings["render_time"] > 0 and first.timings["total"] >= first.timings["render_time"]
     assert first.rgb.std() > 10  # an image, not a blank
+
+
+def test_cycles_workers_start_after_blender_was_imported_here(tmp_path):
+    """Two spawned Cycles workers, from a process that already holds bpy, render the same files as one."""
+    import os
+
+    import bpy  # noqa: F401  (what a notebook user will have done)
+
+    from renderloop.planning.stage import run_plan
+    from renderloop.render.stage import run_render
+    from renderloop.scene.stage import run_scene
+    from renderloop.sim.stage import run_fly
+
+    data = small_config(64, 48).model_dump(mode="json")
+    data["camera"]["rate_hz"] = 0.05  # 5 frames
+    config = type(small_config()).model_validate(data)
+    one, two = tmp_path / "one", tmp_path / "two"
+    for stage in (run_scene, run_plan, run_fly):
+        stage(one, config)
+    os.system(f"cp -r {one} {two}")
+    run_render(one, config)
+    run_render(two, config, workers=2)
+    for name in ("rgb", "depth", "masks"):
+        assert [p.read_bytes() for p in sorted((one / name).iterdir())] == [p.read_bytes() for p in sorted((two / name).iterdir())]

@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from renderloop.config import load_config
 from renderloop.io.csvtable import read_csv
 from renderloop.io.tum import read_tum
 from renderloop.planning.stage import read_waypoints

@@ -42,7 +42,7 @@ from renderloop.scene import meshes
 from renderloop.scene.meshes import Mesh
 from renderloop.scene.model import MAX_PEPPER_ID, Scene
 from renderloop.scene.plant_meshes import plant_meshes
-from renderloop.scene.world import TABLE_LEG, TABLE_TOP_THICKNESS, WALL_THICKNESS
+from renderloop.scene.world import TABLE_LEG, TABLE_TOP_THICKNESS, WALL_THICKNESS, wall_boxes
 
 __all__ = ["CyclesRenderer", "RenderedFrame", "SceneObject", "greenhouse_objects", "VIEW_TRANSFORM"]
 
@@ -89,9 +89,7 @@ def greenhouse_objects(scene: Scene) -> list[SceneObject]:
     (its pass_index is its id), and per plant one pot, one stem, one leaf and one flower object."""
     length, width, height = scene.room
     t = WALL_THICKNESS
-    walls = [
-        meshes.box((sx * (length + t) / 2, 0, height / 2), (t, width + 2 * t, height)) for sx in (-1, 1)
-    ] + [meshes.box((0, sy * (width + t) / 2, height / 2), (length, t, height)) for sy in (-1, 1)]
+    walls = [meshes.box(center, 2 * np.asarray(half)) for _, center, half in wall_boxes(scene.room)]
     station = scene.workstation
     column_height, column_radius = WORKSTATION_COLUMN
     top = (station.center[0], station.center[1], station.size[2])
@@ -226,8 +224,8 @@ class CyclesRenderer:
             c.denoiser = "OPENIMAGEDENOISE"
             c.denoising_use_gpu = False
             c.denoising_input_passes = "RGB_ALBEDO_NORMAL"
-            c.denoising_prefilter = "ACCURATE"
-            c.denoising_quality = "HIGH"
+            c.denoising_prefilter = "ACCURATE" if r.denoise_quality == "high" else "FAST"
+            c.denoising_quality = r.denoise_quality.upper()
         # Short paths: a lit canopy needs few bounces, and clamping keeps fireflies out of 16 spp.
         c.max_bounces, c.diffuse_bounces, c.glossy_bounces = 6, 3, 3
         c.transmission_bounces, c.transparent_max_bounces, c.volume_bounces = 4, 4, 0

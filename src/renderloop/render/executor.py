@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import os
 import socket
+import sys
 from collections.abc import Iterator
+from contextlib import contextmanager
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
 
@@ -90,6 +92,19 @@ def _render_in_process_worker(indices: list[int]) -> Rendered:
     return _process_worker.render(indices)
 
 
+@contextmanager
+def _spawnable_sys_path() -> Iterator[None]:
+    """Spawned workers start from the parent's sys.path. Once bpy is imported that holds
+    Blender's scripts/modules, whose inner `bpy` package shadows the real one and makes
+    `import bpy` fail in the child: hide those entries while the workers start."""
+    saved = list(sys.path)
+    sys.path[:] = [p for p in saved if not ("scripts" in p and ("bpy" in p or "blender" in p))]
+    try:
+        yield
+    finally:
+        sys.path[:] = saved
+
+
 def render_local(config: Config, scene: Scene, poses: np.ndarray, backend: str, indices: list[int], workers: int) -> Iterator[Rendered]:
     if workers <= 1:
         worker = FrameWorker(config, scene, poses, backend)
@@ -103,7 +118,8 @@ def render_local(config: Config, scene: Scene, poses: np.ndarray, backend: str, 
     # spawn, not fork: neither Blender nor an OpenGL context survives a fork
     with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_start_process_worker,
                              initargs=(config, scene, poses, backend)) as pool:
-        futures = [pool.submit(_render_in_process_worker, chunk) for chunk in _chunks(indices)]
+        with _spawnable_sys_path():  # the workers start on the first submissions
+            futures = [pool.submit(_render_in_process_worker, chunk) for chunk in _chunks(indices)]
         for future in as_completed(futures):
             yield future.result()
 

@@ -22,7 +22,7 @@ from renderloop.robot.mjcf import fmt
 from renderloop.scene.meshes import Mesh, merge
 from renderloop.scene.model import Scene
 from renderloop.scene.plant_meshes import plant_meshes
-from renderloop.scene.world import MATERIALS, TABLE_LEG, TABLE_TOP_THICKNESS, WALL_THICKNESS
+from renderloop.scene.world import MATERIALS, TABLE_LEG, TABLE_TOP_THICKNESS, wall_boxes
 
 CAMERA = "render_camera"
 PEPPER_PREFIX = "pepper_"
@@ -57,15 +57,9 @@ def render_world_xml(scene: Scene, config: Config, intrinsics: Intrinsics) -> st
     world = ET.SubElement(root, "worldbody")
     ET.SubElement(world, "light", name="sun", directional="true", pos="0 0 5", dir="0.3 0.4 -1", diffuse="0.6 0.6 0.6", castshadow="true")
 
-    length, width, height = scene.room
+    length, width, _ = scene.room
     _box(world, "floor", (0, 0, -0.05), (length / 2, width / 2, 0.05), MATERIALS["floor"])
-    half_t = WALL_THICKNESS / 2
-    for name, center, half in (
-        ("wall_east", (length / 2 + half_t, 0, height / 2), (half_t, width / 2, height / 2)),
-        ("wall_west", (-length / 2 - half_t, 0, height / 2), (half_t, width / 2, height / 2)),
-        ("wall_north", (0, width / 2 + half_t, height / 2), (length / 2, half_t, height / 2)),
-        ("wall_south", (0, -width / 2 - half_t, height / 2), (length / 2, half_t, height / 2)),
-    ):
+    for name, center, half in wall_boxes(scene.room):
         _box(world, name, center, half, MATERIALS["wall"])
     tables = [(f"table_{row.id}", row.table.center, row.table.size, MATERIALS["table"]) for row in scene.rows]
     tables.append(("workstation", scene.workstation.center, scene.workstation.size, MATERIALS["workstation"]))

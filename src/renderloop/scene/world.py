@@ -37,6 +37,18 @@ def _box(parent: ET.Element, name: str, center, half_size, material: str) -> Non
     ET.SubElement(parent, "geom", name=name, type="box", pos=fmt(*center), size=fmt(*half_size), material=material)
 
 
+def wall_boxes(room) -> list[tuple[str, tuple, tuple]]:
+    """(name, centre, half size) of the four walls just outside the room."""
+    length, width, height = room
+    t = WALL_THICKNESS / 2
+    return [
+        ("wall_east", (length / 2 + t, 0, height / 2), (t, width / 2, height / 2)),
+        ("wall_west", (-length / 2 - t, 0, height / 2), (t, width / 2, height / 2)),
+        ("wall_north", (0, width / 2 + t, height / 2), (length / 2, t, height / 2)),
+        ("wall_south", (0, -width / 2 - t, height / 2), (length / 2, t, height / 2)),
+    ]
+
+
 def _table(parent: ET.Element, name: str, center, size, material: str) -> None:
     """A slab on four legs; `center` is the centre of the table's whole box, floor to top."""
     x, y, _ = center
@@ -70,13 +82,7 @@ def world_xml(scene: Scene, config: Config) -> str:
     ET.SubElement(world, "light", name="sun", directional="true", pos=fmt(0, 0, height), dir="0.2 0.3 -1", diffuse="0.7 0.7 0.7")
     # A slab, not a plane: a plane is tested against every robot geom at every step (a third of the physics time).
     _box(world, "floor", (0, 0, -0.05), (length / 2, width / 2, 0.05), "floor")
-    half_t = WALL_THICKNESS / 2
-    for name, center, half in (
-        ("wall_east", (length / 2 + half_t, 0, height / 2), (half_t, width / 2, height / 2)),
-        ("wall_west", (-length / 2 - half_t, 0, height / 2), (half_t, width / 2, height / 2)),
-        ("wall_north", (0, width / 2 + half_t, height / 2), (length / 2, half_t, height / 2)),
-        ("wall_south", (0, -width / 2 - half_t, height / 2), (length / 2, half_t, height / 2)),
-    ):
+    for name, center, half in wall_boxes(scene.room):
         _box(world, name, center, half, "wall")
 
     for row in scene.rows:
