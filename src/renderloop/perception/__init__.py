@@ -1,0 +1,1 @@
+"""Pepper perception: organised point clouds, the detector, 3D fruit points."""

@@ -1,0 +1,41 @@
+"""One 3D point per detected pepper: the fruit's pixels inside its box, found by depth.
+
+A box around a pepper also holds leaves in front of it and whatever lies behind it,
+but the detected fruit is what its box is mostly about: of all depth windows as deep
+as a pepper's visible skin, the one holding most of the points in the box's central
+part is the fruit (the nearest such window on ties). The centroid of the points in
+it is returned: a point on the visible skin, as in the reference work. (Taking the
+nearest surface instead put 16 % of the points on a leaf in front of the fruit.)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+FRUIT_DEPTH = 0.06  # m of depth a pepper's visible skin spans
+CENTRAL = 0.6  # fraction of the box's width and height taken as its centre
+MIN_POINTS = 5
+BIN = 0.01  # m, depth histogram resolution
+
+
+def fruit_point(cloud: np.ndarray, box: tuple[float, float, float, float]) -> np.ndarray | None:
+    """Centroid (optical frame) of the fruit surface inside `box` = (x0, y0, x1, y1) pixels, or None."""
+    height, width, _ = cloud.shape
+    x0, y0, x1, y1 = box
+    cx, cy, hw, hh = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) * CENTRAL / 2, (y1 - y0) * CENTRAL / 2
+    cols = slice(max(0, int(np.floor(cx - hw))), min(width, int(np.ceil(cx + hw)) + 1))
+    rows = slice(max(0, int(np.floor(cy - hh))), min(height, int(np.ceil(cy + hh)) + 1))
+    points = cloud[rows, cols].reshape(-1, 3)
+    points = points[np.isfinite(points[:, 2])]
+    if len(points) < MIN_POINTS:
+        return None
+    depth = points[:, 2]
+    edges = np.arange(depth.min(), depth.max() + BIN, BIN)
+    counts, _ = np.histogram(depth, bins=np.append(edges, edges[-1] + BIN))
+    window = max(1, int(round(FRUIT_DEPTH / BIN)))
+    support = np.convolve(counts, np.ones(window, dtype=int), mode="full")[window - 1 :]  # support[i]: bins i .. i+window-1
+    start = edges[int(np.argmax(support))]
+    keep = (depth >= start) & (depth < start + FRUIT_DEPTH)
+    if keep.sum() < MIN_POINTS:
+        return None
+    return points[keep].mean(axis=0)
