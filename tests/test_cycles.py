@@ -132,3 +132,44 @@ def test_cycles_workers_start_after_blender_was_imported_here(tmp_path):
     run_render(two, config, workers=2)
     for name in ("rgb", "depth", "masks"):
         assert [p.read_bytes() for p in sorted((one / name).iterdir())] == [p.read_bytes() for p in sorted((two / name).iterdir())]
+
+
+def test_off_centre_principal_point_and_cleanup():
+    """The camera shift puts the optical axis at (cx, cy); the sky is no return; close() cleans up."""
+    config = small_config(120, 90)
+    base = Intrinsics.from_config(config.camera)
+    intrinsics = Intrinsics(base.width, base.height, base.fx, base.fy, base.cx + 3.5, base.cy - 2.25)
+    pose = homogeneous(camera_rotation(0.0, 0.0), (0.0, 0.0, 1.0))
+    target_optical, radius = np.array([0.1, 0.05, 0.8]), 0.03
+    target = pose[:3, :3] @ target_optical + pose[:3, 3]
+    heights = np.linspace(-0.999, 0.999, 41) * radius
+    ball = meshes.tube(target + np.column_stack([0 * heights, 0 * heights, heights]), np.sqrt(radius**2 - heights**2), sides=48)
+    with CyclesRenderer.from_objects([("ball", ball, (0.8, 0.1, 0.1), 7)], config, intrinsics) as renderer:
+        frame = renderer.render(pose)
+        temp = renderer._tmp
+    rows, cols = np.nonzero(frame.mask == 7)
+    u, v = intrinsics.project(target_optical)[0]
+    assert abs(cols.mean() - u) < 0.5 and abs(rows.mean() - v) < 0.5
+    assert set(np.unique(frame.mask)) == {0, 7}
+    assert np.all(frame.depth[frame.mask == 0] == 0)
+    assert not temp.exists()
+    with pytest.raises(RuntimeError):
+        renderer.render(pose)
+
+
+def test_a_fresh_renderer_gives_the_same_frame(greenhouse):
+    scene, intrinsics, pose, _, (first, _) = greenhouse
+    with CyclesRenderer(scene, small_config(160, 120), intrinsics) as renderer:
+        again = renderer.render(pose)
+    assert np.array_equal(first.rgb, again.rgb)
+    assert np.array_equal(first.depth, again.depth)
+    assert np.array_equal(first.mask, again.mask)
+
+
+def test_header_times_parse():
+    from renderloop.render.cycles import _seconds
+
+    assert _seconds("00:00.18") == pytest.approx(0.18)
+    assert _seconds("01:02.50") == pytest.approx(62.5)
+    assert _seconds("1:00:00.00") == pytest.approx(3600.0)
+    assert math.isnan(_seconds(None))
