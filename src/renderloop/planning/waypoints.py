@@ -130,6 +130,16 @@ def _transit(planner: TransitPlanner, a: Waypoint, b: Waypoint) -> list[Waypoint
     return transit
 
 
+def _entry(row: Row, scene: Scene, here: np.ndarray, distance: float) -> tuple[int, int]:
+    """(side, walking direction) whose first scan line starts nearest to where the UAV is now."""
+    ys = [scene.plant(plant_id).position[1] for plant_id in row.plants]
+
+    def start(side: int, walk: int) -> tuple[float, float]:
+        return row.table.center[0] + side * distance, min(ys) if walk > 0 else max(ys)
+
+    return min(((side, walk) for side in (-1, 1) for walk in (-1, 1)), key=lambda option: math.dist(here, start(*option)))
+
+
 def plan_waypoints(scene: Scene, config: Config) -> list[Waypoint]:
     if not scene.plants:
         raise UserError("scene.json: the scene has no plants to scan")
@@ -141,13 +151,7 @@ def plan_waypoints(scene: Scene, config: Config) -> list[Waypoint]:
 
     path = [Waypoint("start", home)]
     for row in _rows_in_order(scene):
-        ys = [scene.plant(p).position[1] for p in row.plants]
-        here = path[-1].dofs[:2]
-        options = [(side, walk) for side in (-1, 1) for walk in (-1, 1)]
-        first_side, walk = min(
-            options,
-            key=lambda o: math.dist(here, (row.table.center[0] + o[0] * config.planner.distance, min(ys) if o[1] > 0 else max(ys))),
-        )
+        first_side, walk = _entry(row, scene, path[-1].dofs[:2], config.planner.distance)
         for side, direction in ((first_side, walk), (-first_side, -walk)):
             line = scan_line(row, scene, side, direction, config)
             for waypoint in line:

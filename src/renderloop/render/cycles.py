@@ -43,7 +43,7 @@ from renderloop.scene import meshes
 from renderloop.scene.meshes import Mesh
 from renderloop.scene.model import MAX_PEPPER_ID, Scene
 from renderloop.scene.plant_meshes import plant_meshes
-from renderloop.scene.world import TABLE_LEG, TABLE_TOP_THICKNESS, WALL_THICKNESS, wall_boxes
+from renderloop.scene.world import WALL_THICKNESS, WORKSTATION_COLUMN, table_boxes, wall_boxes
 
 __all__ = ["CyclesRenderer", "RenderedFrame", "SceneObject", "greenhouse_objects", "VIEW_TRANSFORM"]
 
@@ -52,7 +52,6 @@ log = logging.getLogger(__name__)
 VIEW_TRANSFORM = "Standard"  # plain sRGB OETF; no tone curve a detector would have to unlearn
 LIGHTING_STREAM = 0xC7  # the lighting generator is SeedSequence([scene.seed, LIGHTING_STREAM])
 SENSOR_WIDTH_MM = 36.0  # any value works: the lens is derived from fx and this width
-WORKSTATION_COLUMN = (0.6, 0.05)  # height, radius (as in world.xml)
 DEFAULT_ROOM = (12.0, 10.0, 3.5)
 _PASSES = {"rgb": "ViewLayer.Combined", "z": "ViewLayer.Depth.Z", "index": "ViewLayer.Object Index.X"}
 _active: CyclesRenderer | None = None
@@ -74,15 +73,8 @@ class SceneObject:
 
 
 def _table_mesh(center: Sequence[float], size: Sequence[float]) -> Mesh:
-    """A slab on four legs, the same boxes as `world.xml`; `center` is the table's floor-to-top box centre."""
-    x, y, _ = center
-    sx, sy, height = size
-    parts = [meshes.box((x, y, height - TABLE_TOP_THICKNESS / 2), (sx, sy, TABLE_TOP_THICKNESS))]
-    leg_height = height - TABLE_TOP_THICKNESS
-    for dx, dy in ((-1, -1), (-1, 1), (1, -1), (1, 1)):
-        leg = (x + dx * (sx / 2 - TABLE_LEG), y + dy * (sy / 2 - TABLE_LEG), leg_height / 2)
-        parts.append(meshes.box(leg, (TABLE_LEG, TABLE_LEG, leg_height)))
-    return meshes.merge(parts)
+    """A slab on four legs, the same boxes as `world.xml`."""
+    return meshes.merge([meshes.box(c, 2 * np.asarray(half)) for _, c, half in table_boxes("table", center, size)])
 
 
 def greenhouse_objects(scene: Scene) -> list[SceneObject]:

@@ -22,7 +22,7 @@ from renderloop.robot.mjcf import fmt
 from renderloop.scene.meshes import Mesh, merge
 from renderloop.scene.model import Scene
 from renderloop.scene.plant_meshes import plant_meshes
-from renderloop.scene.world import MATERIALS, TABLE_LEG, TABLE_TOP_THICKNESS, wall_boxes
+from renderloop.scene.world import MATERIALS, WORKSTATION_COLUMN, table_boxes, wall_boxes
 
 CAMERA = "render_camera"
 PEPPER_PREFIX = "pepper_"
@@ -61,16 +61,15 @@ def render_world_xml(scene: Scene, config: Config, intrinsics: Intrinsics) -> st
     _box(world, "floor", (0, 0, -0.05), (length / 2, width / 2, 0.05), MATERIALS["floor"])
     for name, center, half in wall_boxes(scene.room):
         _box(world, name, center, half, MATERIALS["wall"])
-    tables = [(f"table_{row.id}", row.table.center, row.table.size, MATERIALS["table"]) for row in scene.rows]
-    tables.append(("workstation", scene.workstation.center, scene.workstation.size, MATERIALS["workstation"]))
-    for name, (x, y, _), (sx, sy, sz), rgba in tables:
-        _box(world, name, (x, y, sz - TABLE_TOP_THICKNESS / 2), (sx / 2, sy / 2, TABLE_TOP_THICKNESS / 2), rgba)
-        for index, (dx, dy) in enumerate(((-1, -1), (-1, 1), (1, -1), (1, 1))):
-            leg = (x + dx * (sx / 2 - TABLE_LEG), y + dy * (sy / 2 - TABLE_LEG), (sz - TABLE_TOP_THICKNESS) / 2)
-            _box(world, f"{name}_leg{index}", leg, (TABLE_LEG / 2, TABLE_LEG / 2, (sz - TABLE_TOP_THICKNESS) / 2), rgba)
     station = scene.workstation
-    ET.SubElement(world, "geom", name="workstation_arm", type="capsule", size="0.05", rgba=MATERIALS["workstation"],
-                  fromto=fmt(station.center[0], station.center[1], station.size[2], station.center[0], station.center[1], station.size[2] + 0.6))
+    tables = [(f"table_{row.id}", row.table, MATERIALS["table"]) for row in scene.rows]
+    for name, table, rgba in tables + [("workstation", station, MATERIALS["workstation"])]:
+        for box_name, center, half in table_boxes(name, table.center, table.size):
+            _box(world, box_name, center, half, rgba)
+    height, radius = WORKSTATION_COLUMN
+    top = station.size[2]
+    ET.SubElement(world, "geom", name="workstation_arm", type="capsule", size=repr(radius), rgba=MATERIALS["workstation"],
+                  fromto=fmt(station.center[0], station.center[1], top, station.center[0], station.center[1], top + height))
 
     for plant in scene.plants:
         peppers = scene.peppers_of(plant.id)

@@ -41,13 +41,16 @@ def load_poses(run_dir: Path) -> tuple[np.ndarray, np.ndarray]:
     return times, np.array([homogeneous(r, p) for r, p in zip(rotations, positions)])
 
 
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
 def _manifest(run_dir: Path, config: Config, backend: str, poses: np.ndarray) -> dict:
-    digest = lambda data: hashlib.sha256(data).hexdigest()  # noqa: E731
     return {
         "backend": backend,
         "frames": len(poses),
-        "poses_sha256": digest(np.ascontiguousarray(poses).tobytes()),
-        "scene_sha256": digest((run_dir / "scene.json").read_bytes()),
+        "poses_sha256": _sha256(np.ascontiguousarray(poses).tobytes()),
+        "scene_sha256": _sha256((run_dir / "scene.json").read_bytes()),
         "seed": config.seed,
         "camera": config.camera.model_dump(mode="json"),
         "renderer": config.renderer.model_dump(mode="json", exclude={"backend"}),

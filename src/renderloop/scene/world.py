@@ -18,6 +18,7 @@ from renderloop.scene.model import Scene
 TABLE_TOP_THICKNESS = 0.04
 TABLE_LEG = 0.04
 WALL_THICKNESS = 0.05
+WORKSTATION_COLUMN = (0.6, 0.05)  # height above the workstation table and radius of its manipulator, m
 
 MATERIALS = {
     "floor": "0.45 0.42 0.38 1",
@@ -49,15 +50,17 @@ def wall_boxes(room) -> list[tuple[str, tuple, tuple]]:
     ]
 
 
-def _table(parent: ET.Element, name: str, center, size, material: str) -> None:
-    """A slab on four legs; `center` is the centre of the table's whole box, floor to top."""
+def table_boxes(name: str, center, size) -> list[tuple[str, tuple, tuple]]:
+    """(name, centre, half size) of a table's slab and four legs; `center` is the centre of the
+    table's whole box, floor to top. The physics world and both renderers build tables from this."""
     x, y, _ = center
     sx, sy, height = size
-    _box(parent, name, (x, y, height - TABLE_TOP_THICKNESS / 2), (sx / 2, sy / 2, TABLE_TOP_THICKNESS / 2), material)
     leg_height = height - TABLE_TOP_THICKNESS
+    boxes = [(name, (x, y, height - TABLE_TOP_THICKNESS / 2), (sx / 2, sy / 2, TABLE_TOP_THICKNESS / 2))]
     for index, (dx, dy) in enumerate(((-1, -1), (-1, 1), (1, -1), (1, 1))):
         leg_center = (x + dx * (sx / 2 - TABLE_LEG), y + dy * (sy / 2 - TABLE_LEG), leg_height / 2)
-        _box(parent, f"{name}_leg{index}", leg_center, (TABLE_LEG / 2, TABLE_LEG / 2, leg_height / 2), material)
+        boxes.append((f"{name}_leg{index}", leg_center, (TABLE_LEG / 2, TABLE_LEG / 2, leg_height / 2)))
+    return boxes
 
 
 def world_xml(scene: Scene, config: Config) -> str:
@@ -85,13 +88,15 @@ def world_xml(scene: Scene, config: Config) -> str:
     for name, center, half in wall_boxes(scene.room):
         _box(world, name, center, half, "wall")
 
-    for row in scene.rows:
-        _table(world, f"table_{row.id}", row.table.center, row.table.size, "table")
     station = scene.workstation
-    _table(world, "workstation", station.center, station.size, "workstation")
-    sx, sy, sz = station.size
-    ET.SubElement(world, "geom", name="workstation_arm", type="capsule", size="0.05",
-                  fromto=fmt(station.center[0], station.center[1], sz, station.center[0], station.center[1], sz + 0.6), material="workstation")
+    tables = [(f"table_{row.id}", row.table, "table") for row in scene.rows] + [("workstation", station, "workstation")]
+    for name, table, material in tables:
+        for box_name, center, half in table_boxes(name, table.center, table.size):
+            _box(world, box_name, center, half, material)
+    height, radius = WORKSTATION_COLUMN
+    top = station.size[2]
+    ET.SubElement(world, "geom", name="workstation_arm", type="capsule", size=repr(radius),
+                  fromto=fmt(station.center[0], station.center[1], top, station.center[0], station.center[1], top + height), material="workstation")
 
     for plant in scene.plants:
         x, y, z = plant.position
