@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import functools
+import sys
 from pathlib import Path
 
 import pytest
 
+from renderloop.cli import main
 from renderloop.config import Config, load_config
 from renderloop.planning.stage import run_plan
 from renderloop.scene.generate import generate_scene
@@ -40,3 +42,24 @@ def paper_run(tmp_path_factory) -> tuple[Config, Path]:
     run_plan(run_dir, config)
     run_fly(run_dir, config)
     return config, run_dir
+
+
+def fly_demo_raster(run_dir: Path, rate_hz: float = 0.25) -> Path:
+    """The demo scenario planned and flown, set to render with the raster backend at a few frames."""
+    data = load_config("demo").model_dump(mode="json")
+    data["renderer"]["backend"] = "raster"
+    data["camera"]["rate_hz"] = rate_hz
+    config = Config.model_validate(data)
+    run_scene(run_dir, config)
+    run_plan(run_dir, config)
+    run_fly(run_dir, config)
+    return run_dir
+
+
+def cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
+    """Run the real entry point in-process: exit code, stdout, stderr."""
+    monkeypatch.setattr(sys, "argv", ["renderloop", *args])
+    with pytest.raises(SystemExit) as ended:
+        main()
+    captured = capsys.readouterr()
+    return ended.value.code or 0, captured.out, captured.err

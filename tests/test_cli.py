@@ -7,25 +7,19 @@ from pathlib import Path
 import mujoco
 import pytest
 
-from renderloop.cli import main
 from renderloop.config import load_config
 from renderloop.io.atomic import dumps_json
 from renderloop.scene.generate import generate_scene
 
+from conftest import cli
+
 SCENE_FILES = {"config.yaml", "scene.json", "world.xml", "scene_topview.png"}
 
 
-def cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
-    """Run the real entry point in-process: exit code, stdout, stderr."""
-    monkeypatch.setattr(sys, "argv", ["renderloop", *args])
-    with pytest.raises(SystemExit) as ended:
-        main()
-    captured = capsys.readouterr()
-    return ended.value.code or 0, captured.out, captured.err
 
 
 def test_every_verb_has_help():
-    for verb in ([], ["scene"], ["plan"], ["fly"], ["render"], ["run"]):
+    for verb in ([], ["scene"], ["plan"], ["fly"], ["render"], ["dataset"], ["train"], ["detect"], ["count"], ["run"]):
         result = subprocess.run([sys.executable, "-m", "renderloop", *verb, "--help"], capture_output=True, text=True)
         assert result.returncode == 0, result.stderr
         assert "Usage" in result.stdout
@@ -66,7 +60,8 @@ def test_half_written_scene_is_completed(monkeypatch, capsys, tmp_path: Path):
 RUN_FILES = SCENE_FILES | {
     "waypoints.csv", "trajectory.csv", "flight.csv", "groundtruth.txt", "flight_paths.png", "tracking_error.png",
     "render.json", "rgb", "depth", "depth_sensor", "masks", "rgb.txt", "depth.txt", "depth_sensor.txt",
-    "camera_info.yaml", "contact_sheet.png",
+    "camera_info.yaml", "contact_sheet.png", "detections.json", "detection_scores.json", "detections.png",
+    "counts.json", "harvest.json", "counts",
 }
 
 
@@ -76,12 +71,13 @@ def test_run_on_the_demo_preset_resumes_and_redoes_what_is_stale(monkeypatch, ca
     out = tmp_path / "demo"
     code, stdout, stderr = cli(monkeypatch, capsys, "run", "--config", str(fast), "--out", str(out))
     assert code == 0, stderr
-    assert {"scene (done)", "plan (done)", "fly (done)", "render (done)"} <= {line.split("  ")[0].strip() for line in stderr.splitlines()}
+    assert {"scene (done)", "plan (done)", "fly (done)", "render (done)", "detect (done)", "count (done)"} <= {
+        line.split("  ")[0].strip() for line in stderr.splitlines()}
     assert {p.name for p in out.iterdir()} == RUN_FILES
     stamps = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
 
     code, _, stderr = cli(monkeypatch, capsys, "run", "--config", str(fast), "--out", str(out))
-    assert code == 0 and stderr.count("complete, skipped") == 4
+    assert code == 0 and stderr.count("complete, skipped") == 6
     assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == stamps
 
     flight = (out / "flight.csv").read_bytes()

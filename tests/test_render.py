@@ -17,10 +17,9 @@ from renderloop.render.frames import read_frame
 from renderloop.render.raster import RasterRenderer
 from renderloop.render.stage import load_poses, run_render
 from renderloop.robot.kinematics import camera_rotation, homogeneous, look_at
-from renderloop.scene.stage import run_scene
-from renderloop.planning.stage import run_plan
-from renderloop.sim.stage import run_fly
 from renderloop.config import load_config
+
+from conftest import fly_demo_raster
 
 
 def wall_depth(intrinsics: Intrinsics, pose: np.ndarray, wall_x: float) -> np.ndarray:
@@ -89,16 +88,7 @@ def test_pepper_pixels_are_on_the_pepper(raster):
 
 @pytest.fixture()
 def flown(tmp_path: Path) -> Path:
-    config = load_config("demo")
-    data = config.model_dump(mode="json")
-    data["renderer"]["backend"] = "raster"
-    data["camera"]["rate_hz"] = 0.25  # a few frames are enough here
-    config = type(config).model_validate(data)
-    run_dir = tmp_path / "run"
-    run_scene(run_dir, config)
-    run_plan(run_dir, config)
-    run_fly(run_dir, config)
-    return run_dir
+    return fly_demo_raster(tmp_path / "run")
 
 
 def _files(run_dir: Path) -> dict[str, bytes]:

@@ -7,8 +7,10 @@ failure such as a full disk or a read-only directory in one line and exit code 1
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 from rich.console import Console
@@ -16,8 +18,13 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from renderloop import __version__
 from renderloop.config import PRESETS, load_config
+from renderloop.counting.stage import read_counts, run_count
+from renderloop.dataset.build import build_dataset
+from renderloop.dataset.scenes import DatasetSpec
 from renderloop.errors import UserError
 from renderloop.io.rundir import read_config
+from renderloop.perception.photos import detect_photos
+from renderloop.perception.stage import run_detect
 from renderloop.pipeline import run_pipeline
 from renderloop.planning.stage import run_plan
 from renderloop.render.stage import run_render
@@ -33,8 +40,8 @@ app = typer.Typer(
 )
 
 Preset = Annotated[str, typer.Option(help=f"Config preset: {', '.join(PRESETS)}.")]
-ConfigFile = Annotated[Optional[Path], typer.Option("--config", help="YAML file whose fields override the preset.")]
-Seed = Annotated[Optional[int], typer.Option(help="Seed of every random choice (overrides the config's).")]
+ConfigFile = Annotated[Path | None, typer.Option("--config", help="YAML file whose fields override the preset.")]
+Seed = Annotated[int | None, typer.Option(help="Seed of every random choice (overrides the config's).")]
 Out = Annotated[Path, typer.Option(help="Run directory to write into.")]
 Force = Annotated[bool, typer.Option("--force", help="Redo stages whose outputs already exist.")]
 RunDir = Annotated[Path, typer.Argument(help="Run directory made by `renderloop scene`.", show_default=False)]
@@ -75,22 +82,117 @@ def fly(run_dir: RunDir, force: Force = False) -> None:
     typer.echo(f"fly: {'wrote' if made else 'already complete in'} {run_dir}")
 
 
+@contextmanager
+def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
+    """A rich bar on stderr; yields the (done, total) callback the stages take."""
+    with Progress(TextColumn(label), BarColumn(), TextColumn("{task.completed}/{task.total}"), TimeRemainingColumn(),
+                  console=Console(stderr=True)) as bar:
+        task = bar.add_task(label, total=None)
+        yield lambda done, total: bar.update(task, completed=done, total=total)
+
+
+Workers = Annotated[int, typer.Option(min=1, max=256, help="Renderer processes (one scene each).")]
+Executor = Annotated[str, typer.Option(help="local processes, or ray tasks on a Ray cluster.")]
+Address = Annotated[str | None, typer.Option(help="Ray cluster address (with --executor ray); default: start a local one.")]
+
+
 @app.command()
 def render(
     run_dir: RunDir,
-    backend: Annotated[Optional[str], typer.Option(help="cycles (photo-realistic) or raster (MuJoCo, fast); default: the config's.")] = None,
-    workers: Annotated[int, typer.Option(min=1, max=256, help="Renderer processes (one scene each).")] = 1,
-    executor: Annotated[str, typer.Option(help="local processes, or ray tasks on a Ray cluster.")] = "local",
-    address: Annotated[Optional[str], typer.Option(help="Ray cluster address (with --executor ray); default: start a local one.")] = None,
+    backend: Annotated[str | None, typer.Option(help="cycles (photo-realistic) or raster (MuJoCo, fast); default: the config's.")] = None,
+    workers: Workers = 1,
+    executor: Executor = "local",
+    address: Address = None,
     force: Force = False,
 ) -> None:
     """Render RGB, depth (planar, uint16 at 5000 per metre) and pepper instance masks at every pose of groundtruth.txt."""
-    with Progress(TextColumn("render"), BarColumn(), TextColumn("{task.completed}/{task.total}"), TimeRemainingColumn(),
-                  console=Console(stderr=True)) as bar:
-        task = bar.add_task("render", total=None)
-        made = run_render(run_dir, read_config(run_dir), force, backend, workers, executor, address,
-                          progress=lambda done, total: bar.update(task, completed=done, total=total))
+    with _progress_bar("render") as progress:
+        made = run_render(run_dir, read_config(run_dir), force, backend, workers, executor, address, progress=progress)
     typer.echo(f"render: {'wrote' if made else 'already complete in'} {run_dir}")
+
+
+@app.command()
+def dataset(
+    out: Annotated[Path, typer.Option(help="Dataset folder (images/, labels/, annotations/).")],
+    images: Annotated[int, typer.Option(min=1, max=10_000_000, help="Images in the dataset; more than it has adds to it.")],
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the scenes and views.")] = 0,
+    views_per_scene: Annotated[int, typer.Option(min=1, max=1000, help="Views rendered from each random scene.")] = DatasetSpec.views_per_scene,
+    width: Annotated[int, typer.Option(min=16, max=4096, help="Image width, px (height: 3/4 of it).")] = DatasetSpec.width,
+    workers: Workers = 1,
+    executor: Executor = "local",
+    address: Address = None,
+    force: Force = False,
+) -> None:
+    """Render a COCO detection dataset (ripe, unripe) of random greenhouse views with Cycles, boxes from the masks."""
+    spec = DatasetSpec(seed=seed, width=width, height=width * 3 // 4, views_per_scene=views_per_scene)
+    with _progress_bar("dataset") as progress:
+        made = build_dataset(out, images, spec, workers, executor, address, force, progress)
+    typer.echo(f"dataset: rendered {made} images, {images} in {out}")
+
+
+@app.command()
+def train(
+    dataset_dir: Annotated[Path, typer.Argument(help="Dataset folder made by `renderloop dataset`.", show_default=False)],
+    out: Annotated[Path, typer.Option(help="ONNX model to write; its checkpoint is OUT with .ckpt.")],
+    epochs: Annotated[int, typer.Option(min=1, max=100_000)] = 30,
+    batch_size: Annotated[int, typer.Option(min=1, max=4096)] = 32,
+    learning_rate: Annotated[float, typer.Option(min=1e-7, max=1.0)] = 3e-3,
+    seed: Annotated[int, typer.Option(min=0)] = 0,
+    device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "auto",
+    loader_workers: Annotated[int, typer.Option(min=0, max=64, help="Data-loading processes.")] = 1,
+) -> None:
+    """Train the pepper detector (SSDlite MobileNetV3) from scratch; resumes from its checkpoint; exports ONNX."""
+    try:
+        from renderloop.perception.training.train import TrainSettings, train_detector
+    except ImportError as error:
+        raise UserError(f"training needs the train extra: pip install 'renderloop[train]' ({error.name} is missing)") from None
+    if device not in ("auto", "cpu", "cuda"):
+        raise UserError(f"--device {device}: choose from auto, cpu, cuda")
+    settings = TrainSettings(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate, seed=seed)
+    record = train_detector(dataset_dir, out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True))
+    last = record["history"][-1] if record["history"] else {}
+    typer.echo(f"train: wrote {out} (val mAP@0.5 {last.get('map50', float('nan')):.3f})")
+
+
+@app.command()
+def detect(
+    run_dir: Annotated[Path | None, typer.Argument(help="Run directory with rendered frames.", show_default=False)] = None,
+    images: Annotated[Path | None, typer.Option(help="Detect on this folder of photos instead (PNG/JPEG, no depth).")] = None,
+    out: Annotated[Path | None, typer.Option(help="With --images: the JSON file to write.")] = None,
+    model: Annotated[Path | None, typer.Option(help="ONNX model; default: the config's, else the shipped one.")] = None,
+    threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help="Score threshold; default: the config's (0.5).")] = None,
+    force: Force = False,
+) -> None:
+    """Detect peppers: detections.json (boxes, scores, ripe/unripe, 3D world points) of a run, or of a photo folder."""
+    if (run_dir is None) == (images is None):
+        raise UserError("give either a run directory or --images FOLDER --out FILE.json")
+    if images is not None:
+        if out is None:
+            raise UserError("--images needs --out FILE.json")
+        with _progress_bar("detect") as progress:
+            count = detect_photos(images, out, model, 0.5 if threshold is None else threshold, progress)
+        typer.echo(f"detect: {count} photos -> {out}")
+        return
+    config = read_config(run_dir)
+    if threshold is not None:
+        config = config.model_copy(update={"detector": config.detector.model_copy(update={"score_threshold": threshold})})
+    with _progress_bar("detect") as progress:
+        made = run_detect(run_dir, config, force or threshold is not None, model, progress)
+    typer.echo(f"detect: {'wrote' if made else 'already complete in'} {run_dir}")
+
+
+@app.command()
+def count(
+    run_dir: RunDir,
+    no_layout: Annotated[bool, typer.Option("--no-layout", help="Ignore the plant volumes: nearest table and LocalOutlierFactor instead.")] = False,
+    force: Force = False,
+) -> None:
+    """Count the fruit per plant and row (OPTICS on detections.json): counts.json, harvest.json, counts/row_<id>.png."""
+    made = run_count(run_dir, read_config(run_dir), force, use_layout=False if no_layout else None)
+    total = read_counts(run_dir)["total"]
+    error = "n/a" if total["error_pct"] is None else f"{total['error_pct']:+.1f} %"
+    typer.echo(f"count: {'wrote' if made else 'already complete in'} {run_dir} "
+               f"(ripe: {total['estimate']} counted, {total['truth']} true, {error})")
 
 
 @app.command()

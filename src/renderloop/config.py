@@ -250,11 +250,23 @@ class DetectorConfig(Strict):
 
 
 class CountingConfig(Strict):
-    points: PositiveInt = 500
-    eps: PositiveFloat = 0.04
-    augment_noise_std: NonNegativeFloat = 0.01
-    use_layout: bool = True
-    expected_per_plant: PositiveInt = 10
+    """Yield counting (OPTICS on the multi-view fruit points of each row) and the harvest plan."""
+
+    points: PositiveInt = Field(500, ge=2, description="Size of the fixed point set OPTICS clusters per row and class.")
+    eps: PositiveFloat = Field(0.04, description="OPTICS neighbourhood (eps and max_eps), m: about one pepper.")
+    augment_noise_std: NonNegativeFloat = Field(0.01, description="Sigma of the gaussian copies that fill a row up to `points`, m.")
+    use_layout: bool = Field(True, description="Assign and filter points by the plant volumes; false: nearest table and LocalOutlierFactor.")
+    expected_per_plant: PositiveInt = Field(
+        10, description="Fruit a plant may bear (the paper's 10); informational, the counting itself does not use it."
+    )
+    volume_margin: NonNegativeFloat = Field(0.02, description="Growth of each plant's bounding box before points are tested against it, m.")
+    min_views: PositiveInt = Field(2, ge=2, description="Detections a pepper needs; MinPts = min_views * ceil(points / n_init).")
+    cluster_method: Literal["dbscan", "xi"] = Field("dbscan", description="OPTICS cluster extraction (scikit-learn).")
+    xi: float = Field(0.05, gt=0, lt=1, description="Steepness for cluster_method 'xi'.")
+    lof_neighbors: PositiveInt = Field(
+        4, ge=2, description="LocalOutlierFactor n_neighbors when use_layout is false; keep it below the fewest views of a fruit."
+    )
+    harvest_min_ripe: PositiveInt = Field(1, description="Ripe fruit a plant must be expected to bear to be brought to the workstation.")
 
 
 class Config(Strict):

@@ -16,6 +16,8 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 from renderloop.config import Config
+from renderloop.counting import stage as count_stage
+from renderloop.perception import stage as detect_stage
 from renderloop.planning import stage as plan_stage
 from renderloop.render import stage as render_stage
 from renderloop.scene import stage as scene_stage
@@ -37,6 +39,9 @@ STAGES = (
     Stage("fly", fly_stage.OUTPUTS, lambda run_dir, config, force, _: fly_stage.run_fly(run_dir, config, force)),
     Stage("render", render_stage.OUTPUTS,
           lambda run_dir, config, force, progress: render_stage.run_render(run_dir, config, force, progress=progress)),
+    Stage("detect", detect_stage.OUTPUTS,
+          lambda run_dir, config, force, progress: detect_stage.run_detect(run_dir, config, force, progress=progress)),
+    Stage("count", count_stage.OUTPUTS, lambda run_dir, config, force, _: count_stage.run_count(run_dir, config, force)),
 )
 
 

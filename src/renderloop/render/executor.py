@@ -71,7 +71,7 @@ def _chunks(indices: list[int]) -> list[list[int]]:
     return [indices[i : i + CHUNK] for i in range(0, len(indices), CHUNK)]
 
 
-def _threads_per_worker(config: Config, workers: int) -> Config:
+def threads_per_worker(config: Config, workers: int) -> Config:
     """N renderers on N processes share the cores instead of each taking all of them."""
     if workers <= 1 or config.renderer.threads:
         return config
@@ -93,7 +93,7 @@ def _render_in_process_worker(indices: list[int]) -> Rendered:
 
 
 @contextmanager
-def _spawnable_sys_path() -> Iterator[None]:
+def spawnable_sys_path() -> Iterator[None]:
     """Spawned workers start from the parent's sys.path. Once bpy is imported that holds
     Blender's scripts/modules, whose inner `bpy` package shadows the real one and makes
     `import bpy` fail in the child: hide those entries while the workers start."""
@@ -114,11 +114,11 @@ def render_local(config: Config, scene: Scene, poses: np.ndarray, backend: str, 
         finally:
             worker.close()
         return
-    config = _threads_per_worker(config, workers)
+    config = threads_per_worker(config, workers)
     # spawn, not fork: neither Blender nor an OpenGL context survives a fork
     with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_start_process_worker,
                              initargs=(config, scene, poses, backend)) as pool:
-        with _spawnable_sys_path():  # the workers start on the first submissions
+        with spawnable_sys_path():  # the workers start on the first submissions
             futures = [pool.submit(_render_in_process_worker, chunk) for chunk in _chunks(indices)]
         for future in as_completed(futures):
             yield future.result()
@@ -135,7 +135,10 @@ def _check_answers(address: str, timeout: float = 3.0) -> None:
         raise UserError(f"--address {address}: no Ray cluster answers there") from None
 
 
-def render_ray(config: Config, scene: Scene, poses: np.ndarray, backend: str, indices: list[int], workers: int, address: str | None) -> Iterator[Rendered]:
+@contextmanager
+def ray_session(workers: int, address: str | None) -> Iterator[None]:
+    """Join the cluster at `address`, or start a local one with `workers` CPUs; a session
+    started here is shut down on leaving, one the caller started is left running."""
     import ray
 
     started_here = not ray.is_initialized()
@@ -149,7 +152,17 @@ def render_ray(config: Config, scene: Scene, poses: np.ndarray, backend: str, in
         except (ConnectionError, RuntimeError, ValueError) as error:
             raise UserError(f"--address {address}: no Ray cluster answers there ({str(error).splitlines()[0]})") from None
     try:
-        config = _threads_per_worker(config, workers)
+        yield
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+def render_ray(config: Config, scene: Scene, poses: np.ndarray, backend: str, indices: list[int], workers: int, address: str | None) -> Iterator[Rendered]:
+    import ray
+
+    with ray_session(workers, address):
+        config = threads_per_worker(config, workers)
         actor = ray.remote(num_cpus=1)(FrameWorker)
         actors = [actor.remote(config, scene, poses, backend) for _ in range(max(workers, 1))]
         pending, chunks = {}, _chunks(indices)
@@ -162,7 +175,3 @@ def render_ray(config: Config, scene: Scene, poses: np.ndarray, backend: str, in
             if chunks:
                 pending[worker.render.remote(chunks.pop(0))] = worker
             yield ray.get(done)
-    finally:
-        if started_here:
-            ray.shutdown()
-

@@ -1,0 +1,113 @@
+"""Speed of perception: ONNX detector ms per frame, organised point cloud ms per 640x480 frame
+(side by side with Open3D's `create_from_depth_image` when Open3D is installed), training
+images per second.
+
+    .venv/bin/python benchmarks/detect.py [--repeats 30] [--train-steps 5] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+
+import numpy as np
+
+from renderloop.perception.detector import Detector
+from renderloop.perception.pointcloud import organised_cloud
+from renderloop.render.camera import Intrinsics
+
+
+def summary(values: list[float]) -> dict[str, float]:
+    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
+
+
+def timed(function, repeats: int) -> list[float]:
+    function()  # warm-up
+    out = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        function()
+        out.append((time.perf_counter() - start) * 1000)
+    return out
+
+
+def synthetic_depth(intrinsics: Intrinsics, rng: np.random.Generator) -> np.ndarray:
+    depth = rng.uniform(0.3, 3.0, (intrinsics.height, intrinsics.width)).astype(np.float32)
+    depth[rng.random(depth.shape) < 0.1] = 0.0
+    return depth
+
+
+def open3d_cloud_ms(depth: np.ndarray, intrinsics: Intrinsics, repeats: int) -> list[float] | None:
+    try:
+        import open3d as o3d
+    except ImportError:
+        return None
+    image = o3d.geometry.Image(depth)
+    camera = o3d.camera.PinholeCameraIntrinsic(intrinsics.width, intrinsics.height, intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy)
+    return timed(lambda: o3d.geometry.PointCloud.create_from_depth_image(image, camera, depth_scale=1.0, depth_trunc=100.0,
+                                                                       project_valid_depth_only=False), repeats)
+
+
+def training_images_per_second(steps: int, batch: int = 16) -> dict[str, float]:
+    import torch
+
+    from renderloop.perception.training.ssd import build_model
+
+    rates = {}
+    devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
+    for device in devices:
+        model = build_model().to(device).train()
+        optimizer = torch.optim.AdamW(model.parameters(), lr=1e-3)
+        images = [torch.rand(3, 240, 320, device=device) for _ in range(batch)]
+        targets = [{"boxes": torch.tensor([[40.0, 50, 80, 100]], device=device), "labels": torch.tensor([1], device=device)}] * batch
+        times = []
+        for step in range(steps + 1):
+            start = time.perf_counter()
+            loss = sum(model(images, targets).values())
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            if device == "cuda":
+                torch.cuda.synchronize()
+            if step:
+                times.append(batch / (time.perf_counter() - start))
+        rates[device] = statistics.median(times)
+    return rates
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=30)
+    parser.add_argument("--train-steps", type=int, default=5)
+    parser.add_argument("--json", default=None)
+    args = parser.parse_args()
+    rng = np.random.default_rng(0)
+    intrinsics = Intrinsics(640, 480, 589.4, 589.4, 319.5, 239.5)
+    frame = (rng.random((480, 640, 3)) * 255).astype(np.uint8)
+    detector = Detector(threads=2)
+    depth = synthetic_depth(intrinsics, rng)
+    figures = {
+        "detector_ms_per_frame": summary(timed(lambda: detector.detect(frame, 0.5), args.repeats)),
+        "cloud_ms_per_frame": summary(timed(lambda: organised_cloud(depth, intrinsics), args.repeats)),
+    }
+    reference = open3d_cloud_ms(depth, intrinsics, args.repeats)
+    if reference is not None:
+        figures["open3d_cloud_ms_per_frame"] = summary(reference)
+        figures["cloud_speed_vs_open3d"] = figures["open3d_cloud_ms_per_frame"]["median"] / figures["cloud_ms_per_frame"]["median"]
+    if args.train_steps:
+        figures["training_images_per_s"] = training_images_per_second(args.train_steps)
+    print(f"{'figure':<34} {'median':>10} {'min':>10} {'max':>10}")
+    for name, value in figures.items():
+        if isinstance(value, dict) and "median" in value:
+            print(f"{name:<34} {value['median']:>10.2f} {value['min']:>10.2f} {value['max']:>10.2f}")
+        else:
+            print(f"{name:<34} {json.dumps(value)}")
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as out:
+            json.dump(figures, out, indent=1)
+
+
+if __name__ == "__main__":
+    main()

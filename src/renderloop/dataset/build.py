@@ -1,0 +1,159 @@
+"""`renderloop dataset`: render the training set, resumably and in parallel, and write COCO files.
+
+Image i is view i % K of dataset scene i // K (K views per scene), so it depends on
+the seed and i only: a killed build resumes where it stopped, and a larger
+`--images` adds images without touching the ones there. A worker builds one
+Blender scene per dataset scene and returns encoded images and labels; the driver
+alone writes, each image before its label file, both atomically, so an image
+counts as done exactly when its label file exists.
+
+Layout: `images/NNNNNN.jpg`, `labels/NNNNNN.json` (every pepper seen, with the
+ignore rules' verdict), `annotations/instances_{train,val}.json` (COCO; validation
+holds whole scenes), `dataset.json` (the spec), `preview.png`.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from renderloop.dataset.coco import write_coco
+from renderloop.dataset.labels import pepper_boxes
+from renderloop.dataset.preview import draw_preview
+from renderloop.dataset.scenes import DatasetSpec, dataset_scene
+from renderloop.dataset.views import random_view
+from renderloop.errors import UserError
+from renderloop.io.atomic import write_bytes, write_json
+from renderloop.render.camera import Intrinsics
+from renderloop.render.executor import ray_session, spawnable_sys_path
+from renderloop.scene.plant_meshes import plant_meshes
+
+VIEW_STREAM = 0x71E3
+JPEG_QUALITY = 95
+MANIFEST = "dataset.json"
+
+Rendered = list[tuple[int, bytes, dict]]
+Progress = Callable[[int, int], None]
+
+
+def image_name(index: int, suffix: str) -> str:
+    return f"{index:06d}.{suffix}"
+
+
+def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[int], threads: int = 0) -> Rendered:
+    """Render the given views of one dataset scene: (image index, JPEG bytes, label record) each."""
+    from renderloop.render.cycles import (
+        CyclesRenderer,  # bpy only where frames are rendered
+    )
+
+    config, scene = dataset_scene(spec, scene_index)
+    if threads:
+        config = config.model_copy(update={"renderer": config.renderer.model_copy(update={"threads": threads})})
+    intrinsics = Intrinsics.from_config(config.camera)
+    rng = np.random.default_rng(np.random.SeedSequence([spec.seed, VIEW_STREAM, scene_index]))
+    poses = [random_view(scene, rng) for _ in range(spec.views_per_scene)]  # all drawn, so a view never depends on which are done
+    peppers = {pepper.id: pepper for pepper in scene.peppers}
+    meshes = {}
+    for plant in scene.plants:
+        meshes.update({k: m.vertices for k, m in plant_meshes(plant, scene.peppers_of(plant.id)).peppers.items()})
+    out = []
+    with CyclesRenderer(scene, config, intrinsics) as renderer:
+        for view in view_indices:
+            frame = renderer.render(poses[view])
+            buffer = io.BytesIO()
+            Image.fromarray(frame.rgb).save(buffer, format="JPEG", quality=JPEG_QUALITY)
+            index = scene_index * spec.views_per_scene + view
+            record = {
+                "image": f"images/{image_name(index, 'jpg')}", "scene": scene_index, "width": intrinsics.width,
+                "height": intrinsics.height, "split": "val" if spec.is_val(scene_index) else "train",
+                "samples": config.renderer.samples, "pose": np.round(poses[view], 9).tolist(),
+                "peppers": pepper_boxes(frame.mask, peppers, meshes, poses[view], intrinsics, config.camera.clip[0]),
+            }
+            out.append((index, buffer.getvalue(), record))
+    return out
+
+
+def _check_spec(out: Path, spec: DatasetSpec, force: bool) -> None:
+    path = out / MANIFEST
+    if path.is_file() and not force:
+        try:
+            recorded = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+            recorded = None
+        if recorded != spec.manifest():
+            raise UserError(f"{out}: holds a dataset of other settings (see {MANIFEST}); use --force to replace it")
+    elif force:
+        for sub in ("images", "labels", "annotations"):
+            for file in (out / sub).glob("*") if (out / sub).is_dir() else ():
+                file.unlink()
+    for sub in ("images", "labels", "annotations"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+    write_json(path, spec.manifest())
+
+
+def _pending(out: Path, spec: DatasetSpec, images: int) -> dict[int, list[int]]:
+    todo: dict[int, list[int]] = {}
+    for index in range(images):
+        if not (out / "labels" / image_name(index, "json")).is_file():
+            todo.setdefault(index // spec.views_per_scene, []).append(index % spec.views_per_scene)
+    return todo
+
+
+def _in_processes(spec: DatasetSpec, todo: dict[int, list[int]], workers: int) -> Iterator[Rendered]:
+    if workers <= 1:
+        for scene_index, views in todo.items():
+            yield render_scene_views(spec, scene_index, views)
+        return
+    threads = max(1, (os.cpu_count() or 1) // workers)  # the workers share the cores
+    with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
+        with spawnable_sys_path():  # the workers start on the first submissions
+            futures = [pool.submit(render_scene_views, spec, s, v, threads) for s, v in todo.items()]
+        for future in as_completed(futures):
+            yield future.result()
+
+
+def _on_ray(spec: DatasetSpec, todo: dict[int, list[int]], workers: int, address: str | None) -> Iterator[Rendered]:
+    import ray
+
+    with ray_session(workers, address):
+        task = ray.remote(num_cpus=1)(render_scene_views)
+        pending = [task.remote(spec, s, v, 1) for s, v in todo.items()]
+        while pending:
+            [done], pending = ray.wait(pending, num_returns=1)
+            yield ray.get(done)
+
+
+def build_dataset(out: Path, images: int, spec: DatasetSpec, workers: int = 1, executor: str = "local",
+                  address: str | None = None, force: bool = False, progress: Progress | None = None) -> int:
+    """Render the missing images of the first `images`, then (re)write the COCO files; returns images rendered."""
+    if images < 1:
+        raise UserError(f"--images {images}: need at least one image")
+    if executor not in ("local", "ray"):
+        raise UserError(f"unknown executor {executor!r} (choose from: local, ray)")
+    out = Path(out)
+    _check_spec(out, spec, force)
+    todo = _pending(out, spec, images)
+    done = images - sum(len(views) for views in todo.values())
+    if progress:
+        progress(done, images)
+    rendered = 0
+    batches = _on_ray(spec, todo, workers, address) if executor == "ray" else _in_processes(spec, todo, workers)
+    for batch in batches:
+        for index, jpeg, record in batch:
+            write_bytes(out / "images" / image_name(index, "jpg"), jpeg)
+            write_json(out / "labels" / image_name(index, "json"), record)
+        rendered += len(batch)
+        if progress:
+            progress(done + rendered, images)
+    records = [json.loads((out / "labels" / image_name(i, "json")).read_text(encoding="utf-8")) for i in range(images)]
+    write_coco(out / "annotations", records)
+    draw_preview(out, records[:24], out / "preview.png")
+    return rendered

@@ -1,0 +1,80 @@
+"""Random greenhouse scenes for the training set.
+
+Each dataset scene is a small greenhouse (two rows of four plants, every plant
+bearing) whose plant shape, fruit size, colour mix, lighting and render quality are
+drawn from the dataset seed and the scene's index, so that a view can be rebuilt
+from two integers and the dataset grows without changing the images it has.
+The ranges are wider than the presets' on purpose: the detector has to see more
+variety than any one run will show it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from renderloop.config import Config, deep_merge, preset_overrides, validate
+from renderloop.errors import UserError
+from renderloop.scene.generate import generate_scene
+from renderloop.scene.model import Scene
+
+SCENE_STREAM = 0xDA7A
+MAX_TRIES = 20
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """What defines the images of a dataset (its manifest); the image count is not part of it."""
+
+    seed: int = 0
+    width: int = 320
+    height: int = 240
+    views_per_scene: int = 16
+    samples: tuple[int, ...] = (2, 4, 8)  # path-tracing noise levels around the run's default, after denoising
+    val_every: int = 10  # every tenth scene is held out for validation
+
+    def manifest(self) -> dict:
+        return {"format_version": 1, **{key: list(v) if isinstance(v, tuple) else v for key, v in asdict(self).items()}}
+
+    def is_val(self, scene_index: int) -> bool:
+        return scene_index % self.val_every == self.val_every - 1
+
+
+def _scene_overrides(rng: np.random.Generator, spec: DatasetSpec) -> dict:
+    leaves_low = int(rng.integers(18, 40))
+    leaf_low = float(rng.uniform(0.06, 0.09))
+    length_low = float(rng.uniform(0.055, 0.08))
+    colors = {"red": rng.uniform(0.1, 1.0), "yellow": rng.uniform(0.0, 1.0),
+              "orange": rng.uniform(0.0, 1.0), "green": rng.uniform(0.1, 0.8)}
+    return {
+        "greenhouse": {"size": (7.0, 6.0, 3.5), "tables": [(-1.0, 0.0), (1.0, 0.0)], "plants_per_table": 4,
+                       "workstation_center": (0.0, -2.3)},
+        "plants": {
+            "bearing": None,
+            "leaves": (leaves_low, leaves_low + int(rng.integers(8, 30))),
+            "leaf_length": (leaf_low, leaf_low + float(rng.uniform(0.03, 0.07))),
+            "flowers": (0, int(rng.integers(1, 7))),
+            "peppers": {
+                "per_side": (1, int(rng.integers(2, 6))),
+                "length": (length_low, length_low + float(rng.uniform(0.01, 0.035))),
+                "colors": {name: float(weight) for name, weight in colors.items()},
+            },
+        },
+        "camera": {"width": spec.width, "height": spec.height},
+        "renderer": {"backend": "cycles", "samples": int(rng.choice(spec.samples)), "denoise": True},
+    }
+
+
+def dataset_scene(spec: DatasetSpec, scene_index: int) -> tuple[Config, Scene]:
+    """The config and scene of dataset scene `scene_index`; a draw whose fruit do not fit is redrawn."""
+    rng = np.random.default_rng(np.random.SeedSequence([spec.seed, SCENE_STREAM, scene_index]))
+    base = preset_overrides("paper")
+    for _ in range(MAX_TRIES):
+        data = deep_merge(base, {**_scene_overrides(rng, spec), "seed": int(rng.integers(2**62))})
+        config = validate(data, f"dataset scene {scene_index}")
+        try:
+            return config, generate_scene(config)
+        except UserError:
+            continue
+    raise UserError(f"dataset scene {scene_index}: no fruit layout fits after {MAX_TRIES} draws")

@@ -1,0 +1,126 @@
+"""The pepper detector at inference time: ONNX Runtime and numpy, no torch.
+
+Post-processing mirrors torchvision's SSD (`postprocess_detections`): per class,
+scores above a floor, the top 300 candidates, class-wise NMS at IoU 0.55, at most
+300 detections; then the caller's score threshold. Frames of any size are resized
+to the network input with PIL's antialiased bilinear filter (a 640x480 frame then
+looks like the 320 px renders the network was trained on) and boxes are scaled back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from renderloop.errors import UserError
+
+CLASSES = ("ripe", "unripe")
+INPUT_SIZE = 320
+NMS_IOU = 0.55
+TOPK_CANDIDATES = 300
+MAX_DETECTIONS = 300
+SCORE_FLOOR = 0.01  # torchvision's score_thresh: candidates below it never reach NMS
+SHIPPED_MODEL = "pepper_ssdlite.onnx"
+
+
+@dataclass(frozen=True)
+class Detection:
+    bbox: tuple[float, float, float, float]  # x0, y0, x1, y1 in pixels of the frame
+    score: float
+    label: str
+
+    def to_json(self) -> dict:
+        return {"bbox": [round(v, 2) for v in self.bbox], "score": round(self.score, 5), "label": self.label}
+
+
+def shipped_model() -> Path:
+    return Path(str(resources.files("renderloop.perception").joinpath("model", SHIPPED_MODEL)))
+
+
+def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """IoU matrix of boxes (N, 4) and (M, 4), x0 y0 x1 y1."""
+    top_left = np.maximum(a[:, None, :2], b[None, :, :2])
+    bottom_right = np.minimum(a[:, None, 2:], b[None, :, 2:])
+    size = np.clip(bottom_right - top_left, 0, None)
+    inter = size[..., 0] * size[..., 1]
+    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
+    area_b = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
+    return inter / np.maximum(area_a[:, None] + area_b[None, :] - inter, np.finfo(inter.dtype).tiny)
+
+
+def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> np.ndarray:
+    """Greedy NMS: indices of kept boxes by decreasing score (stable for ties)."""
+    order = np.argsort(-scores, kind="stable")
+    iou = box_iou(boxes[order], boxes[order])
+    keep = np.ones(len(order), dtype=bool)
+    for i in range(len(order)):
+        if keep[i]:
+            keep[i + 1 :] &= iou[i, i + 1 :] <= iou_threshold
+    return order[keep]
+
+
+def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, score_threshold: float) -> list[Detection]:
+    """Network outputs (boxes in input pixels, (A, 4); class probabilities, (A, 1 + classes)) to detections
+    in pixels of a `width` x `height` frame. NMS runs in float32 in the input's pixels, as torchvision's does,
+    so that borderline overlaps are decided the same way."""
+    boxes, scores = boxes.astype(np.float32), scores.astype(np.float32)
+    candidates = []
+    for label in range(1, scores.shape[1]):
+        index = np.nonzero(scores[:, label] > SCORE_FLOOR)[0]
+        index = index[np.argsort(-scores[index, label], kind="stable")[:TOPK_CANDIDATES]]
+        candidates.append((index, np.full(len(index), label)))
+    index = np.concatenate([c[0] for c in candidates])
+    labels = np.concatenate([c[1] for c in candidates])
+    if len(index) == 0:
+        return []
+    cand_boxes, cand_scores = boxes[index], scores[index, labels]
+    # class-wise NMS in one pass: boxes of different classes are moved apart so they never overlap (torchvision's trick)
+    offsets = (labels[:, None] * (cand_boxes.max() + 1.0)).astype(np.float32)
+    keep = nms(cand_boxes + offsets, cand_scores, NMS_IOU)[:MAX_DETECTIONS]
+    scale = np.array([width, height, width, height], dtype=np.float64) / INPUT_SIZE
+    return [Detection(tuple(float(v) for v in cand_boxes[k] * scale), float(cand_scores[k]), CLASSES[labels[k] - 1])
+            for k in keep if cand_scores[k] >= score_threshold]
+
+
+def to_input(rgb: np.ndarray) -> np.ndarray:
+    """(H, W, 3) uint8 to the network's (1, 3, 320, 320) float32 in [0, 1]."""
+    image = Image.fromarray(rgb)
+    if image.size != (INPUT_SIZE, INPUT_SIZE):
+        image = image.resize((INPUT_SIZE, INPUT_SIZE), Image.BILINEAR)
+    return (np.asarray(image, dtype=np.float32) / 255.0).transpose(2, 0, 1)[None]
+
+
+class Detector:
+    """An ONNX pepper detector; a file that is not one is a one-line UserError naming it."""
+
+    def __init__(self, model: Path | None = None, threads: int = 0) -> None:
+        import onnxruntime as ort
+
+        self.path = Path(model) if model is not None else shipped_model()
+        options = ort.SessionOptions()
+        options.intra_op_num_threads = threads
+        options.log_severity_level = 3
+        try:
+            self.session = ort.InferenceSession(str(self.path), options, providers=["CPUExecutionProvider"])
+        except Exception as error:  # ORT raises its own exception types for unreadable files
+            if not self.path.is_file():
+                raise UserError(f"{self.path}: no such model file") from None
+            raise UserError(f"{self.path}: not an ONNX model ({str(error).splitlines()[0][:120]})") from None
+        inputs = [(i.name, i.shape) for i in self.session.get_inputs()]
+        outputs = [o.name for o in self.session.get_outputs()]
+        if inputs != [("images", [1, 3, INPUT_SIZE, INPUT_SIZE])] or outputs != ["boxes", "scores"]:
+            raise UserError(f"{self.path}: not a renderloop pepper detector (inputs {inputs}, outputs {outputs})")
+
+    def raw(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        boxes, scores = self.session.run(None, {"images": to_input(rgb)})
+        return boxes, scores
+
+    def detect(self, rgb: np.ndarray, score_threshold: float) -> list[Detection]:
+        if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
+            raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
+        boxes, scores = self.raw(rgb)
+        return postprocess(boxes, scores, rgb.shape[1], rgb.shape[0], score_threshold)

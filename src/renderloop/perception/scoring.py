@@ -1,0 +1,90 @@
+"""Detections against the truth of a rendered run: boxes from the instance masks, IoU matching, 3D error.
+
+A pepper counts as findable when its visible part spans at least MIN_SIDE x MIN_SIDE
+pixels (the issue's 20 x 20 at 640 x 480). Matching is greedy by score at IoU 0.5,
+one detection per pepper; a detection that matches a pepper too small to count is
+neither a hit nor a false detection, and a detection of the other class still
+counts as the fruit found (ripeness is scored separately, as label accuracy).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from renderloop.perception.detector import box_iou
+
+MIN_SIDE = 20
+MATCH_IOU = 0.5
+
+
+def mask_boxes(mask: np.ndarray) -> dict[int, tuple[int, int, int, int]]:
+    """Pepper id -> box of its visible pixels (x0, y0, x1, y1; x1, y1 one past the last pixel)."""
+    ids = np.unique(mask)
+    boxes = {}
+    for pepper_id in ids[ids > 0].tolist():
+        rows, cols = np.nonzero(mask == pepper_id)
+        boxes[pepper_id] = (int(cols.min()), int(rows.min()), int(cols.max()) + 1, int(rows.max()) + 1)
+    return boxes
+
+
+def match(detections: list[dict], truth: dict[int, tuple[int, int, int, int]]) -> dict[int, int]:
+    """Detection index -> pepper id, greedy by decreasing score at IoU >= 0.5."""
+    if not detections or not truth:
+        return {}
+    ids = list(truth)
+    iou = box_iou(np.array([d["bbox"] for d in detections], dtype=float), np.array([truth[i] for i in ids], dtype=float))
+    matched: dict[int, int] = {}
+    for d in np.argsort([-d["score"] for d in detections], kind="stable"):
+        free = [j for j in np.argsort(-iou[d]) if iou[d, j] >= MATCH_IOU and ids[j] not in matched.values()]
+        if free:
+            matched[int(d)] = ids[free[0]]
+    return matched
+
+
+def findable(box: tuple[int, int, int, int]) -> bool:
+    return box[2] - box[0] >= MIN_SIDE and box[3] - box[1] >= MIN_SIDE
+
+
+class RunScore:
+    """Accumulates frame by frame; `summary()` gives the figures of the perception issue."""
+
+    def __init__(self, ripe: dict[int, bool], centers: dict[int, np.ndarray]) -> None:
+        self.ripe, self.centers = ripe, centers
+        self.findable_ripe = self.found_ripe = self.detections = self.false = self.label_right = self.labelled = 0
+        self.errors: list[float] = []
+
+    def add(self, detections: list[dict], mask: np.ndarray) -> None:
+        truth = mask_boxes(mask)
+        matched = match(detections, truth)
+        for index, detection in enumerate(detections):
+            pepper = matched.get(index)
+            if pepper is None:
+                self.detections += 1
+                self.false += 1
+                continue
+            if not findable(truth[pepper]):
+                continue
+            self.detections += 1
+            self.labelled += 1
+            self.label_right += (detection["label"] == "ripe") == self.ripe[pepper]
+            if detection.get("position") is not None:
+                self.errors.append(float(np.linalg.norm(np.asarray(detection["position"]) - self.centers[pepper])))
+        hits = set(matched.values())
+        for pepper, box in truth.items():
+            if self.ripe[pepper] and findable(box):
+                self.findable_ripe += 1
+                self.found_ripe += pepper in hits
+
+    def summary(self) -> dict:
+        def ratio(a: int, b: int) -> float | None:
+            return round(a / b, 4) if b else None
+
+        return {
+            "ripe_findable": self.findable_ripe, "ripe_found": self.found_ripe,
+            "ripe_recall": ratio(self.found_ripe, self.findable_ripe),
+            "detections_scored": self.detections, "false_detections": self.false,
+            "false_rate": ratio(self.false, self.detections),
+            "label_accuracy": ratio(self.label_right, self.labelled),
+            "position_error_median_m": round(float(np.median(self.errors)), 4) if self.errors else None,
+            "position_error_p90_m": round(float(np.percentile(self.errors, 90)), 4) if self.errors else None,
+        }

@@ -1,0 +1,78 @@
+"""The COCO training set as torch samples, with SSD's augmentation.
+
+Augmentation is the SSD recipe (torchvision's v2 transforms carry the boxes along):
+photometric distortion, zoom out (smaller fruit on a padded canvas), IoU-constrained
+random crops (larger fruit, fruit cut by the border), horizontal flips. Fruit
+marked iscrowd (tiny or mostly hidden, see `renderloop.dataset.labels`) are not targets.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import torch
+from PIL import Image
+
+from renderloop.errors import UserError
+from renderloop.perception.training.torch_support import import_torchvision
+
+import_torchvision()
+from torchvision import tv_tensors
+from torchvision.transforms import v2
+
+FILL = (110, 115, 110)  # zoom-out canvas: the greenhouse's mean grey-green
+
+
+def read_coco(path: Path) -> dict:
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        data["images"], data["annotations"]
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such file (make the dataset with `renderloop dataset`)") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError):
+        raise UserError(f"{path}: not a COCO detection file") from None
+    return data
+
+
+class PepperBoxes(torch.utils.data.Dataset):
+    def __init__(self, root: Path, split: str, augment: bool) -> None:
+        self.root = Path(root)
+        self.annotation_file = self.root / "annotations" / f"instances_{split}.json"
+        coco = read_coco(self.annotation_file)
+        self.images = coco["images"]
+        self.targets: dict[int, list[dict]] = {image["id"]: [] for image in self.images}
+        for ann in coco["annotations"]:
+            if not ann["iscrowd"]:
+                self.targets[ann["image_id"]].append(ann)
+        steps = [v2.RandomPhotometricDistort(p=0.5), v2.RandomZoomOut(fill=FILL, side_range=(1.0, 2.0), p=0.3),
+                 v2.RandomIoUCrop(), v2.RandomHorizontalFlip()] if augment else []
+        self.transform = v2.Compose([*steps, v2.ToDtype(torch.float32, scale=True), v2.SanitizeBoundingBoxes()])
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+    def __getitem__(self, index: int) -> tuple[torch.Tensor, dict]:
+        info = self.images[index]
+        path = self.root / info["file_name"]
+        try:
+            with Image.open(path) as file:
+                image = tv_tensors.Image(v2.functional.pil_to_tensor(file.convert("RGB")))
+        except OSError:
+            raise UserError(f"{path}: missing or not an image") from None
+        anns = self.targets[info["id"]]
+        boxes = torch.tensor([[x, y, x + w, y + h] for x, y, w, h in (a["bbox"] for a in anns)], dtype=torch.float32).reshape(-1, 4)
+        target = {
+            "boxes": tv_tensors.BoundingBoxes(boxes, format="XYXY", canvas_size=tuple(image.shape[-2:])),
+            "labels": torch.tensor([a["category_id"] for a in anns], dtype=torch.int64),
+            "image_id": info["id"],
+        }
+        if len(anns) == 0:  # the IoU crop needs a box to keep; a fruitless view is used as it is
+            image, target = v2.ToDtype(torch.float32, scale=True)(image, target)
+            return image, target
+        return self.transform(image, target)
+
+
+def collate(batch: list) -> tuple[list, list]:
+    images, targets = zip(*batch)
+    return list(images), list(targets)

@@ -1,0 +1,74 @@
+"""The detector network and its ONNX form.
+
+torchvision's `ssdlite320_mobilenet_v3_large`, from scratch (no weights can be
+downloaded), classes background, ripe, unripe. The ONNX graph holds the network
+and the box decoding, not the per-class filtering and NMS: those run in numpy
+after ONNX Runtime (`renderloop.perception.detector`), the same code for every
+backend, so the exported file has no data-dependent shapes and its outputs can be
+compared with torch's number for number.
+
+ONNX contract: input `images` float32 (1, 3, 320, 320) RGB in [0, 1] (the frame
+resized to the input, aspect not kept, as torchvision's SSD transform does);
+outputs `boxes` (A, 4) x0 y0 x1 y1 in pixels of the input, and `scores`
+(A, 3) softmax class probabilities, background first.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from renderloop.perception.detector import CLASSES, INPUT_SIZE
+from renderloop.perception.training.torch_support import import_torchvision
+
+torchvision = import_torchvision()
+from torchvision.models.detection import ssdlite320_mobilenet_v3_large
+from torchvision.models.detection.image_list import ImageList
+
+OPSET = 17
+
+
+def build_model() -> nn.Module:
+    return ssdlite320_mobilenet_v3_large(weights=None, weights_backbone=None, num_classes=len(CLASSES) + 1)
+
+
+class DecodedSSD(nn.Module):
+    """Network plus box decoding for one image already at the input size (the ONNX graph)."""
+
+    def __init__(self, model: nn.Module) -> None:
+        super().__init__()
+        self.model = model
+        transform = model.transform
+        self.register_buffer("mean", torch.tensor(transform.image_mean).view(1, 3, 1, 1))
+        self.register_buffer("std", torch.tensor(transform.image_std).view(1, 3, 1, 1))
+        with torch.no_grad():
+            dummy = torch.zeros(1, 3, INPUT_SIZE, INPUT_SIZE)
+            features = list(model.backbone(dummy).values())
+            anchors = model.anchor_generator(ImageList(dummy, [(INPUT_SIZE, INPUT_SIZE)]), features)[0]
+        self.register_buffer("anchors", anchors)
+
+    def forward(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        features = list(self.model.backbone((images - self.mean) / self.std).values())
+        head = self.model.head(features)
+        boxes = self.model.box_coder.decode_single(head["bbox_regression"][0], self.anchors)
+        return boxes.clamp(0.0, float(INPUT_SIZE)), torch.softmax(head["cls_logits"][0], dim=-1)
+
+
+def export_onnx(model: nn.Module, path: Path, metadata: dict[str, str] | None = None) -> None:
+    """Write the ONNX graph (classic TorchScript exporter, opset 17) with the classes in its metadata."""
+    import onnx
+
+    from renderloop.io.atomic import atomic_path
+
+    model = model.eval()
+    wrapper = DecodedSSD(model).eval()
+    with atomic_path(Path(path)) as tmp:
+        torch.onnx.export(wrapper, (torch.zeros(1, 3, INPUT_SIZE, INPUT_SIZE),), str(tmp), input_names=["images"],
+                          output_names=["boxes", "scores"], opset_version=OPSET, dynamo=False)
+        graph = onnx.load(str(tmp))
+        entries = {"renderloop_detector": "ssdlite320_mobilenet_v3_large", "classes": ",".join(CLASSES), **(metadata or {})}
+        for key, value in entries.items():
+            graph.metadata_props.add(key=key, value=str(value))
+        onnx.save(graph, str(tmp))

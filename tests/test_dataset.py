@@ -1,0 +1,114 @@
+"""The training set: random scenes and views, boxes from masks with the ignore rules, resumable COCO build."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from renderloop.dataset.build import build_dataset
+from renderloop.dataset.labels import MIN_SIDE, pepper_boxes
+from renderloop.dataset.scenes import DatasetSpec, dataset_scene
+from renderloop.dataset.views import random_view
+from renderloop.errors import UserError
+from renderloop.render.camera import Intrinsics
+from renderloop.render.raster import RasterRenderer
+from renderloop.scene.plant_meshes import plant_meshes
+
+TINY = DatasetSpec(seed=3, width=64, height=48, views_per_scene=2, samples=(1,), val_every=2)
+
+
+def test_dataset_scenes_are_reproducible_varied_and_all_bearing():
+    spec = DatasetSpec(seed=5)
+    (config_a, scene_a), (config_b, scene_b) = dataset_scene(spec, 0), dataset_scene(spec, 1)
+    assert dataset_scene(spec, 0)[1] == scene_a
+    assert all(plant.bearing for plant in scene_a.plants) and scene_a.peppers
+    assert config_a.seed != config_b.seed and scene_a.peppers != scene_b.peppers
+    assert (config_a.camera.width, config_a.camera.height) == (320, 240)
+    assert config_a.renderer.samples in spec.samples
+
+
+def _ray_hits_box(origin: np.ndarray, direction: np.ndarray, low: np.ndarray, high: np.ndarray) -> bool:
+    with np.errstate(divide="ignore"):
+        t1, t2 = (low - origin) / direction, (high - origin) / direction
+    near, far = np.minimum(t1, t2).max(), np.maximum(t1, t2).min()
+    return far >= max(near, 0.0)
+
+
+def test_views_keep_clear_of_plants_and_tables_and_aim_at_a_plant():
+    _, scene = dataset_scene(DatasetSpec(seed=9), 2)
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        pose = random_view(scene, rng)
+        position, axis = pose[:3, 3], pose[:3, 2]
+        assert not any(plant.bounds.contains(tuple(position), 0.04) for plant in scene.plants)
+        assert np.allclose(pose[:3, :3] @ pose[:3, :3].T, np.eye(3), atol=1e-9)
+        assert axis[2] < np.sin(np.radians(21))  # never looks up more than 20 degrees (plus roll)
+        assert any(_ray_hits_box(position, axis, np.asarray(p.bounds.min) - 0.02, np.asarray(p.bounds.max) + 0.02)
+                   for p in scene.plants)
+
+
+def test_boxes_cover_the_mask_and_unhidden_fruit_are_fully_visible():
+    spec = DatasetSpec(seed=4)
+    config, scene = dataset_scene(spec, 0)
+    intrinsics = Intrinsics.from_config(config.camera)
+    peppers = {p.id: p for p in scene.peppers}
+    meshes = {}
+    for plant in scene.plants:
+        meshes.update({k: m.vertices for k, m in plant_meshes(plant, scene.peppers_of(plant.id)).peppers.items()})
+    rng = np.random.default_rng(1)
+    fractions, records_seen = [], 0
+    with RasterRenderer(scene, config, intrinsics) as renderer:
+        for _ in range(12):
+            pose = random_view(scene, rng)
+            mask = renderer.render(pose).mask
+            for record in pepper_boxes(mask, peppers, meshes, pose, intrinsics, config.camera.clip[0]):
+                records_seen += 1
+                x0, y0, x1, y1 = record["bbox"]
+                pixels = mask == record["pepper_id"]
+                assert pixels[y0:y1, x0:x1].sum() == pixels.sum() == record["pixels"]
+                assert pixels[y0, x0:x1].any() and pixels[y1 - 1, x0:x1].any() and pixels[y0:y1, x0].any() and pixels[y0:y1, x1 - 1].any()
+                assert 0 < record["visible_fraction"] <= 1
+                assert record["label"] == ("ripe" if peppers[record["pepper_id"]].ripe else "unripe")
+                if min(x1 - x0, y1 - y0) < MIN_SIDE:
+                    assert record["ignore"] == "tiny"
+                fractions.append(record["visible_fraction"])
+    assert records_seen > 20
+    # the convex hull of the projected fruit bounds its silhouette: fruit in plain view reach nearly 1
+    assert np.percentile(fractions, 90) > 0.85
+
+
+def _files(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_build_resumes_grows_and_is_reproducible(tmp_path: Path):
+    grown, whole = tmp_path / "grown", tmp_path / "whole"
+    assert build_dataset(grown, 3, TINY) == 3
+    first = _files(grown / "images")
+    (grown / "labels" / "000002.json").unlink()  # as if killed before its label landed
+    assert build_dataset(grown, 4, TINY) == 2
+    assert build_dataset(whole, 4, TINY) == 4
+    assert {k: v for k, v in _files(grown / "images").items() if k in first} == first
+    assert _files(grown) == _files(whole)
+    train = json.loads((whole / "annotations" / "instances_train.json").read_text())
+    val = json.loads((whole / "annotations" / "instances_val.json").read_text())
+    assert [i["file_name"] for i in train["images"]] == ["images/000000.jpg", "images/000001.jpg"]
+    assert [i["file_name"] for i in val["images"]] == ["images/000002.jpg", "images/000003.jpg"]
+    assert {c["name"] for c in train["categories"]} == {"ripe", "unripe"}
+    for ann in train["annotations"] + val["annotations"]:
+        x, y, w, h = ann["bbox"]
+        assert w > 0 and h > 0 and x + w <= 64 and y + h <= 48 and ann["category_id"] in (1, 2)
+    assert (whole / "preview.png").is_file()
+    assert not list(whole.rglob(".*.partial"))
+
+
+def test_a_dataset_of_other_settings_is_not_mixed(tmp_path: Path):
+    build_dataset(tmp_path, 1, TINY)
+    other = DatasetSpec(seed=4, width=64, height=48, views_per_scene=2, samples=(1,), val_every=2)
+    with pytest.raises(UserError, match="other settings"):
+        build_dataset(tmp_path, 1, other)
+    with pytest.raises(UserError, match="--images 0"):
+        build_dataset(tmp_path, 0, TINY)

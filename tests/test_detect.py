@@ -1,0 +1,137 @@
+"""`renderloop detect`: detections.json of a rendered run (resumable, geometric), and photo folders."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from renderloop.errors import UserError
+from renderloop.io.rundir import read_config
+from renderloop.perception.stage import CACHE, run_detect
+from renderloop.perception.training.ssd import build_model, export_onnx
+from renderloop.render.camera import read_camera_info
+from renderloop.render.frames import decode_depth, read_png
+from renderloop.render.stage import load_poses, run_render
+
+from conftest import cli, fly_demo_raster
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory) -> Path:
+    """A random detector whose scores vary enough to give boxes at threshold 0.3."""
+    torch.manual_seed(0)
+    network = build_model().eval()
+    with torch.no_grad():
+        for parameter in network.parameters():
+            parameter.add_(torch.randn_like(parameter) * 0.05)
+    path = tmp_path_factory.mktemp("model") / "random.onnx"
+    export_onnx(network, path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory) -> Path:
+    run_dir = fly_demo_raster(tmp_path_factory.mktemp("detect") / "run", rate_hz=0.2)
+    config = read_config(run_dir)
+    data = config.model_dump(mode="json")
+    data["detector"]["score_threshold"] = 0.3
+    (run_dir / "config.yaml").write_text(type(config).model_validate(data).to_yaml())
+    run_render(run_dir, read_config(run_dir))
+    return run_dir
+
+
+def test_detections_hold_every_frame_and_points_lie_in_their_boxes(rendered: Path, model: Path, tmp_path: Path):
+    run_dir = tmp_path / "run"
+    shutil.copytree(rendered, run_dir)
+    assert run_detect(run_dir, read_config(run_dir), model=model)
+    document = json.loads((run_dir / "detections.json").read_text())
+    times, poses = load_poses(run_dir)
+    assert [f["index"] for f in document["frames"]] == list(range(len(poses)))
+    assert [f["timestamp"] for f in document["frames"]] == pytest.approx(times, abs=1e-6)
+    assert document["depth"] == "depth_sensor" and document["score_threshold"] == 0.3
+    intrinsics = read_camera_info(run_dir / "camera_info.yaml")
+    placed = 0
+    for frame, pose in zip(document["frames"], poses):
+        depth = decode_depth(read_png(run_dir / "depth_sensor" / Path(frame["image"]).name, np.uint16))
+        for detection in frame["detections"]:
+            x0, y0, x1, y1 = detection["bbox"]
+            assert 0 <= x0 <= x1 <= intrinsics.width and 0 <= y0 <= y1 <= intrinsics.height
+            assert detection["label"] in ("ripe", "unripe") and detection["score"] >= 0.3
+            if detection["position"] is None:
+                continue
+            local = (np.asarray(detection["position"]) - pose[:3, 3]) @ pose[:3, :3]
+            u, v = intrinsics.project(local)[0]
+            assert x0 - 1 <= u <= x1 + 1 and y0 - 1 <= v <= y1 + 1  # the centroid of points inside the box
+            box_depth = depth[int(y0):int(np.ceil(y1)), int(x0):int(np.ceil(x1))]
+            assert box_depth[box_depth > 0].min() - 0.01 <= local[2] <= box_depth.max() + 0.01
+            placed += 1
+    assert placed > 20
+    scores = json.loads((run_dir / "detection_scores.json").read_text())
+    assert {"ripe_recall", "false_rate", "position_error_median_m"} <= set(scores)
+    assert (run_dir / "detections.png").is_file() and not (run_dir / CACHE).exists()
+    assert not run_detect(run_dir, read_config(run_dir))  # complete: skipped (the model came from --model)
+
+
+def test_a_bad_frame_stops_detection_and_the_rerun_finishes_the_same(rendered: Path, model: Path, tmp_path: Path):
+    clean, broken = tmp_path / "clean", tmp_path / "broken"
+    shutil.copytree(rendered, clean)
+    shutil.copytree(rendered, broken)
+    run_detect(clean, read_config(clean), model=model)
+    frame = broken / "rgb" / "000002.png"
+    good = frame.read_bytes()
+    frame.write_bytes(good[:100])
+    with pytest.raises(UserError, match="000002.png: not a readable PNG"):
+        run_detect(broken, read_config(broken), model=model)
+    assert len((broken / CACHE).read_text().splitlines()) == 2 and not (broken / "detections.json").exists()
+    frame.write_bytes(good)
+    run_detect(broken, read_config(broken), model=model)
+    assert (broken / "detections.json").read_bytes() == (clean / "detections.json").read_bytes()
+
+
+def test_depth_of_another_size_is_refused(rendered: Path, model: Path, tmp_path: Path):
+    run_dir = tmp_path / "run"
+    shutil.copytree(rendered, run_dir)
+    from PIL import Image
+
+    Image.fromarray(np.zeros((10, 12), np.uint16)).save(run_dir / "depth_sensor" / "000000.png")
+    with pytest.raises(UserError, match="000000.png: depth is 12x10 but the RGB frame is 320x240"):
+        run_detect(run_dir, read_config(run_dir), model=model)
+
+
+def test_photo_folders(rendered: Path, model: Path, tmp_path: Path, monkeypatch, capsys):
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for name in ("a.png", "b.png", "c.png"):
+        shutil.copy(rendered / "rgb" / "000001.png", photos / name)
+    from PIL import Image
+
+    Image.open(photos / "a.png").convert("RGB").resize((500, 333)).save(photos / "d.jpg")
+    out = tmp_path / "found.json"
+    code, stdout, _ = cli(monkeypatch, capsys, "detect", "--images", str(photos), "--out", str(out), "--model", str(model), "--threshold", "0.3")
+    assert code == 0 and "4 photos" in stdout
+    found = json.loads(out.read_text())
+    assert found["complete"] and sorted(found["images"]) == ["a.png", "b.png", "c.png", "d.jpg"]
+    assert found["images"]["a.png"] == found["images"]["b.png"] and found["images"]["a.png"]["detections"]
+    assert found["images"]["d.jpg"]["width"] == 500
+    assert all(d["bbox"][2] <= 500 and d["bbox"][3] <= 333 for d in found["images"]["d.jpg"]["detections"])
+
+    (photos / "b.png").write_bytes(b"not a png at all")
+    code, _, stderr = cli(monkeypatch, capsys, "detect", "--images", str(photos), "--out", str(out), "--model", str(model))
+    errors = [line for line in stderr.splitlines() if line.startswith("renderloop: error")]
+    assert code == 2 and len(errors) == 1 and errors[0].endswith("b.png: not a readable image") and "Traceback" not in stderr
+    partial = json.loads(out.read_text())
+    assert not partial["complete"] and list(partial["images"]) == ["a.png"]
+
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    code, _, stderr = cli(monkeypatch, capsys, "detect", "--images", str(empty), "--out", str(out))
+    assert code == 2 and "no PNG or JPEG files" in stderr
+    junk = tmp_path / "junk.onnx"
+    junk.write_bytes(b"\x00" * 64)
+    code, _, stderr = cli(monkeypatch, capsys, "detect", "--images", str(photos), "--out", str(out), "--model", str(junk))
+    assert code == 2 and "junk.onnx: not an ONNX model" in stderr
