@@ -99,6 +99,9 @@ def test_postprocessing_equals_torchvisions_ssd():
     assert np.allclose([d.bbox for d in ours], expected["boxes"].numpy()[keep] * [2, 1.5, 2, 1.5], atol=1e-3)
     assert np.allclose([d.score for d in ours], expected["scores"].numpy()[keep], atol=1e-6)
     assert [d.label for d in ours] == [("ripe", "unripe")[k - 1] for k in expected["labels"].numpy()[keep]]
+    # a threshold applied before NMS keeps exactly the detections above it
+    above = [d for d in ours if d.score >= 0.5]
+    assert len(above) > 10 and postprocess(boxes.numpy(), scores.numpy(), 640, 480, score_threshold=0.5) == above
 
 
 def test_onnx_model_gives_the_torch_models_outputs(tmp_path: Path):
