@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -19,7 +20,7 @@ SCENE_FILES = {"config.yaml", "scene.json", "world.xml", "scene_topview.png"}
 
 
 def test_every_verb_has_help():
-    for verb in ([], ["scene"], ["plan"], ["fly"], ["render"], ["dataset"], ["train"], ["detect"], ["count"], ["run"]):
+    for verb in ([], ["scene"], ["plan"], ["fly"], ["render"], ["dataset"], ["train"], ["detect"], ["count"], ["report"], ["run"]):
         result = subprocess.run([sys.executable, "-m", "renderloop", *verb, "--help"], capture_output=True, text=True)
         assert result.returncode == 0, result.stderr
         assert "Usage" in result.stdout
@@ -61,7 +62,7 @@ RUN_FILES = SCENE_FILES | {
     "waypoints.csv", "trajectory.csv", "flight.csv", "groundtruth.txt", "flight_paths.png", "tracking_error.png",
     "render.json", "rgb", "depth", "depth_sensor", "masks", "rgb.txt", "depth.txt", "depth_sensor.txt",
     "camera_info.yaml", "contact_sheet.png", "detections.json", "detection_scores.json", "detections.png",
-    "counts.json", "harvest.json", "counts",
+    "counts.json", "harvest.json", "counts", "timings.json",
 }
 
 
@@ -79,6 +80,15 @@ def test_run_on_the_demo_preset_resumes_and_redoes_what_is_stale(monkeypatch, ca
     code, _, stderr = cli(monkeypatch, capsys, "run", "--config", str(fast), "--out", str(out))
     assert code == 0 and stderr.count("complete, skipped") == 6
     assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == stamps
+
+    code, stdout, _ = cli(monkeypatch, capsys, "report", str(out))
+    page = (out / "report.html").read_text()
+    assert code == 0 and "report.html" in stdout
+    assert page.count("data:image/png;base64,") == 6 and "http" not in page  # 5 stage figures + 1 row plot, all inline
+    counts = json.loads((out / "counts.json").read_text())
+    assert f"<td class=\"\">{counts['total']['truth']}</td>" in page
+    assert all(f">{stage}</td><td class=\"\">" in page for stage in ("scene", "render", "count"))
+    (out / "report.html").unlink()
 
     flight = (out / "flight.csv").read_bytes()
     cli(monkeypatch, capsys, "scene", "--config", str(fast), "--out", str(out), "--force")  # an earlier stage redone...
@@ -103,6 +113,9 @@ def test_stages_refuse_missing_or_broken_inputs(monkeypatch, capsys, tmp_path: P
     code, _, stderr = cli(monkeypatch, capsys, "fly", str(out))
     assert code == 2 and "trajectory.csv: not a numeric table" in stderr and stderr.count("\n") == 1
     assert not (out / "flight.csv").exists()
+    code, _, stderr = cli(monkeypatch, capsys, "report", str(out))
+    assert code == 2 and "missing flight_paths.png (run `renderloop fly` first)" in stderr and stderr.count("\n") == 1
+    assert not (out / "report.html").exists()
 
 
 def test_plan_with_a_take_off_point_outside_the_room_exits_2(monkeypatch, capsys, tmp_path: Path):

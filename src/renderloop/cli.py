@@ -27,6 +27,7 @@ from renderloop.perception.photos import detect_photos
 from renderloop.perception.stage import run_detect
 from renderloop.pipeline import run_pipeline
 from renderloop.planning.stage import run_plan
+from renderloop.report.html import write_report
 from renderloop.render.stage import run_render
 from renderloop.scene.stage import run_scene
 from renderloop.sim.stage import run_fly
@@ -193,6 +194,12 @@ def count(
     error = "n/a" if total["error_pct"] is None else f"{total['error_pct']:+.1f} %"
     typer.echo(f"count: {'wrote' if made else 'already complete in'} {run_dir} "
                f"(ripe: {total['estimate']} counted, {total['truth']} true, {error})")
+
+
+@app.command()
+def report(run_dir: RunDir, out: Annotated[Path | None, typer.Option(help="HTML file; default: DIR/report.html.")] = None) -> None:
+    """Write report.html: one self-contained page of the run (config, scene, flight, frames, detections, counts, times)."""
+    typer.echo(f"report: wrote {write_report(run_dir, out)}")
 
 
 @app.command()

@@ -7,16 +7,24 @@ report (done, total) units of work. A killed run therefore resumes where it stop
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.progress import (
+    BarColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
 
 from renderloop.config import Config
 from renderloop.counting import stage as count_stage
+from renderloop.io.atomic import write_json
 from renderloop.perception import stage as detect_stage
 from renderloop.planning import stage as plan_stage
 from renderloop.render import stage as render_stage
@@ -24,6 +32,7 @@ from renderloop.scene import stage as scene_stage
 from renderloop.sim import stage as fly_stage
 
 ReportFn = Callable[[int, int], None]
+TIMINGS = "timings.json"
 
 
 @dataclass(frozen=True)
@@ -61,4 +70,18 @@ def run_pipeline(run_dir: Path, config: Config, force: bool = False, console: Co
             note = "done" if ran else "complete, skipped"
             total = progress.tasks[task].total or 1
             progress.update(task, completed=total, total=total, description=f"{stage.name} ({note})")
+            _record_time(run_dir, stage.name, seconds[stage.name])
     return seconds
+
+
+def _record_time(run_dir: Path, stage: str, seconds: float) -> None:
+    """timings.json keeps the seconds of the last run of each stage; a skipped stage keeps its earlier time."""
+    path = Path(run_dir) / TIMINGS
+    try:
+        timings = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        timings = {}
+    if seconds > 0 or stage not in timings:
+        updated = {**timings, stage: round(seconds, 2)}
+        if updated != timings and Path(run_dir).is_dir():
+            write_json(path, updated)
