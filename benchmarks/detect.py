@@ -13,14 +13,11 @@ import statistics
 import time
 
 import numpy as np
+from common import scan_poses, summary
 
 from renderloop.perception.detector import Detector
 from renderloop.perception.pointcloud import organised_cloud
 from renderloop.render.camera import Intrinsics
-
-
-def summary(values: list[float]) -> dict[str, float]:
-    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
 
 
 def timed(function, repeats: int) -> list[float]:
@@ -37,7 +34,6 @@ def pepper_frame() -> np.ndarray:
     """A 640x480 raster frame of the demo greenhouse from a scan pose: real boxes go through NMS."""
     from renderloop.config import load_config
     from renderloop.render.raster import RasterRenderer
-    from renderloop.robot.kinematics import look_at
     from renderloop.scene.generate import generate_scene
 
     config = load_config("paper")
@@ -45,10 +41,8 @@ def pepper_frame() -> np.ndarray:
     data["camera"] = config.camera.model_dump(mode="json")
     config = type(config).model_validate(data)
     scene = generate_scene(config)
-    plant = next(p for p in scene.plants if p.bearing)
-    target = np.array([plant.position[0], plant.position[1], (plant.position[2] + plant.pot.height + plant.bounds.max[2]) / 2])
     with RasterRenderer(scene, config, Intrinsics.from_config(config.camera)) as renderer:
-        return renderer.render(look_at(target + np.array([-0.44, 0.05, 0.1]), target)).rgb
+        return renderer.render(scan_poses(scene, 1)[0]).rgb
 
 
 def synthetic_depth(intrinsics: Intrinsics, rng: np.random.Generator) -> np.ndarray:

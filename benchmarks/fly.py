@@ -13,13 +13,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import tempfile
 import time
 from pathlib import Path
 
 import mujoco
 import numpy as np
+from common import summary
 
 from renderloop.config import load_config
 from renderloop.io.csvtable import read_csv
@@ -43,10 +43,6 @@ def closed_loop(model: mujoco.MjModel, config, reference: Reference) -> float:
     start = time.perf_counter()
     log = fly(model, config, reference, hold=0.0)
     return log.t[-1] / (time.perf_counter() - start)
-
-
-def summary(values: list[float]) -> dict[str, float]:
-    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
 
 
 def main() -> None:

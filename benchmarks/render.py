@@ -15,12 +15,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+from common import scan_poses, summary
 
 from renderloop.config import load_config
 from renderloop.planning.stage import run_plan
@@ -28,23 +27,9 @@ from renderloop.render.camera import Intrinsics
 from renderloop.render.cycles import CyclesRenderer
 from renderloop.render.raster import RasterRenderer
 from renderloop.render.stage import run_render
-from renderloop.robot.kinematics import look_at
 from renderloop.scene.generate import generate_scene
 from renderloop.scene.stage import run_scene
 from renderloop.sim.stage import run_fly
-
-
-def summary(values: list[float]) -> dict[str, float]:
-    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
-
-
-def scan_poses(scene, count: int) -> list[np.ndarray]:
-    """Camera poses like the scan's: 0.44 m from a bearing plant, aimed at its centroid."""
-    poses = []
-    for plant in [p for p in scene.plants if p.bearing][:count]:
-        target = np.array([plant.position[0], plant.position[1], (plant.position[2] + plant.pot.height + plant.bounds.max[2]) / 2])
-        poses.append(look_at(target + np.array([-0.44, 0.05, 0.1]), target))
-    return poses
 
 
 def cycles_frames(scene, config, poses) -> tuple[list[float], list[float]]:

@@ -63,3 +63,17 @@ def cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
         main()
     captured = capsys.readouterr()
     return ended.value.code or 0, captured.out, captured.err
+
+
+def jittered_model(seed: int):
+    """A random detector network whose scores differ between anchors (a fresh head scores every anchor alike)."""
+    import torch
+
+    from renderloop.perception.training.ssd import build_model
+
+    torch.manual_seed(seed)
+    model = build_model().eval()
+    with torch.no_grad():
+        for parameter in model.parameters():
+            parameter.add_(torch.randn_like(parameter) * 0.05)
+    return model

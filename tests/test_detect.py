@@ -8,29 +8,23 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 
 from renderloop.errors import UserError
 from renderloop.io.rundir import read_config
 from renderloop.perception.stage import CACHE, run_detect
-from renderloop.perception.training.ssd import build_model, export_onnx
+from renderloop.perception.training.ssd import export_onnx
 from renderloop.render.camera import read_camera_info
 from renderloop.render.frames import decode_depth, read_png
 from renderloop.render.stage import load_poses, run_render
 
-from conftest import cli, fly_demo_raster
+from conftest import cli, fly_demo_raster, jittered_model
 
 
 @pytest.fixture(scope="module")
 def model(tmp_path_factory) -> Path:
     """A random detector whose scores vary enough to give boxes at threshold 0.3."""
-    torch.manual_seed(0)
-    network = build_model().eval()
-    with torch.no_grad():
-        for parameter in network.parameters():
-            parameter.add_(torch.randn_like(parameter) * 0.05)
     path = tmp_path_factory.mktemp("model") / "random.onnx"
-    export_onnx(network, path)
+    export_onnx(jittered_model(0), path)
     return path
 
 

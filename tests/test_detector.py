@@ -17,6 +17,8 @@ from renderloop.perception.training.ssd import DecodedSSD, build_model, export_o
 from renderloop.perception.training.torch_support import import_torchvision
 from renderloop.perception.training.train import TrainSettings, train_detector
 
+from conftest import jittered_model
+
 torchvision = import_torchvision()
 
 
@@ -60,16 +62,6 @@ def tiny_dataset(tmp_path_factory) -> Path:
     return root
 
 
-def _jittered_model(seed: int) -> torch.nn.Module:
-    """A random network whose scores differ between anchors (a fresh head scores every anchor alike)."""
-    torch.manual_seed(seed)
-    model = build_model().eval()
-    with torch.no_grad():
-        for parameter in model.parameters():
-            parameter.add_(torch.randn_like(parameter) * 0.05)
-    return model
-
-
 def test_numpy_nms_equals_torchvision_nms():
     rng = np.random.default_rng(2)
     corners = rng.uniform(0, 80, (300, 2))
@@ -105,7 +97,7 @@ def test_postprocessing_equals_torchvisions_ssd():
 
 
 def test_onnx_model_gives_the_torch_models_outputs(tmp_path: Path):
-    model = _jittered_model(4)
+    model = jittered_model(4)
     path = tmp_path / "model.onnx"
     export_onnx(model, path)
     detector = Detector(path)

@@ -16,6 +16,7 @@ import numpy as np
 from matplotlib.path import Path as PolygonPath
 from scipy.spatial import ConvexHull, QhullError
 
+from renderloop.perception.scoring import mask_boxes
 from renderloop.render.camera import Intrinsics
 from renderloop.scene.model import Pepper
 
@@ -50,16 +51,14 @@ def silhouette_pixels(vertices: np.ndarray, pose: np.ndarray, intrinsics: Intrin
 def pepper_boxes(mask: np.ndarray, peppers: dict[int, Pepper], meshes: dict[int, np.ndarray], pose: np.ndarray,
                  intrinsics: Intrinsics, near: float) -> list[dict]:
     """One record per pepper seen in `mask`: its box, label, visible pixels and visible fraction, and whether it is ignored."""
-    ids = np.unique(mask)
+    pixels = np.bincount(mask.ravel())
     records = []
-    for pepper_id in ids[ids > 0].tolist():
-        rows, cols = np.nonzero(mask == pepper_id)
-        box = [int(cols.min()), int(rows.min()), int(cols.max()) + 1, int(rows.max()) + 1]
+    for pepper_id, box in mask_boxes(mask).items():
         silhouette = silhouette_pixels(meshes[pepper_id], pose, intrinsics, near)
-        visible = len(rows) / silhouette if silhouette else 1.0
+        visible = pixels[pepper_id] / silhouette if silhouette else 1.0
         tiny = min(box[2] - box[0], box[3] - box[1]) < MIN_SIDE
         records.append({
-            "pepper_id": pepper_id, "bbox": box, "label": label_of(peppers[pepper_id]), "pixels": len(rows),
+            "pepper_id": pepper_id, "bbox": list(box), "label": label_of(peppers[pepper_id]), "pixels": int(pixels[pepper_id]),
             "visible_fraction": round(min(visible, 1.0), 4),
             "ignore": "tiny" if tiny else "occluded" if visible < MIN_VISIBLE else None,
         })

@@ -44,10 +44,6 @@ CACHE = ".detections.cache.jsonl"
 Progress = Callable[[int, int], None]
 
 
-def model_path(config: Config, override: Path | None) -> Path | None:
-    return override if override is not None else config.detector.model
-
-
 def _read_cache(path: Path, model: str) -> list[dict]:
     """Frames already done by this model; a torn last line (a kill mid-write) is dropped."""
     frames = []
@@ -91,7 +87,7 @@ def run_detect(run_dir: Path, config: Config, force: bool = False, model: Path |
     rundir.require(run_dir, INPUTS, "render")
     if not force and model is None and rundir.complete(run_dir, OUTPUTS, INPUTS):
         return False
-    detector = Detector(model_path(config, model))
+    detector = Detector(model if model is not None else config.detector.model)
     threshold = config.detector.score_threshold
     times, poses = load_poses(run_dir)
     intrinsics = read_camera_info(run_dir / "camera_info.yaml")
