@@ -128,6 +128,22 @@ def test_training_checkpoints_resumes_and_exports(tiny_dataset: Path, tmp_path: 
         train_detector(tiny_dataset, out, TrainSettings(epochs=3, batch_size=4), device="cpu", workers=0, log=lambda _: None)
 
 
+def test_fine_tuning_starts_from_the_weights_of_a_checkpoint(tiny_dataset: Path, tmp_path: Path):
+    first = tmp_path / "first.onnx"
+    settings = TrainSettings(epochs=1, batch_size=4, warmup_steps=1, max_steps=1)
+    train_detector(tiny_dataset, first, settings, device="cpu", workers=0, log=lambda _: None)
+    still = TrainSettings(epochs=1, batch_size=4, warmup_steps=1, learning_rate=1e-7, max_steps=1)  # too small to move the weights
+    tuned = tmp_path / "tuned.onnx"
+    record = train_detector(tiny_dataset, tuned, still, device="cpu", workers=0, log=lambda _: None, init=first.with_suffix(".ckpt"))
+    assert record["init"] == str(first.with_suffix(".ckpt"))
+    rgb = (np.random.default_rng(1).random((240, 320, 3)) * 255).astype(np.uint8)
+    assert np.allclose(Detector(tuned).raw(rgb)[1], Detector(first).raw(rgb)[1], atol=1e-3)
+    junk = tmp_path / "junk.ckpt"
+    junk.write_bytes(b"not a checkpoint")
+    with pytest.raises(UserError, match="junk.ckpt: not a renderloop training checkpoint"):
+        train_detector(tiny_dataset, tmp_path / "other.onnx", settings, device="cpu", workers=0, log=lambda _: None, init=junk)
+
+
 def test_files_that_are_not_detectors_are_refused(tmp_path: Path):
     junk = tmp_path / "junk.onnx"
     junk.write_bytes(np.random.default_rng(0).bytes(4096))

@@ -22,13 +22,17 @@ from renderloop.counting.stage import read_counts, run_count
 from renderloop.dataset.build import build_dataset
 from renderloop.dataset.scenes import DatasetSpec
 from renderloop.errors import UserError
+from renderloop.evaluation.runner import evaluate
+from renderloop.evaluation.seeds import parse_seeds
+from renderloop.evaluation.table import format_table, write_eval
+from renderloop.export.command import export_run
 from renderloop.io.rundir import read_config
 from renderloop.perception.photos import detect_photos
 from renderloop.perception.stage import run_detect
 from renderloop.pipeline import run_pipeline
 from renderloop.planning.stage import run_plan
-from renderloop.report.html import write_report
 from renderloop.render.stage import run_render
+from renderloop.report.html import write_report
 from renderloop.scene.stage import run_scene
 from renderloop.sim.stage import run_fly
 
@@ -141,8 +145,9 @@ def train(
     seed: Annotated[int, typer.Option(min=0)] = 0,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "auto",
     loader_workers: Annotated[int, typer.Option(min=0, max=64, help="Data-loading processes.")] = 1,
+    init: Annotated[Path | None, typer.Option(help="Start from the weights of an earlier run's .ckpt (fine-tuning).")] = None,
 ) -> None:
-    """Train the pepper detector (SSDlite MobileNetV3) from scratch; resumes from its checkpoint; exports ONNX."""
+    """Train the pepper detector (SSDlite MobileNetV3) from scratch or --init weights; resumes from its checkpoint; exports ONNX."""
     try:
         from renderloop.perception.training.train import TrainSettings, train_detector
     except ImportError as error:
@@ -150,7 +155,7 @@ def train(
     if device not in ("auto", "cpu", "cuda"):
         raise UserError(f"--device {device}: choose from auto, cpu, cuda")
     settings = TrainSettings(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate, seed=seed)
-    record = train_detector(dataset_dir, out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True))
+    record = train_detector(dataset_dir, out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True), init=init)
     last = record["history"][-1] if record["history"] else {}
     typer.echo(f"train: wrote {out} (val mAP@0.5 {last.get('map50', float('nan')):.3f})")
 
@@ -200,6 +205,43 @@ def count(
 def report(run_dir: RunDir, out: Annotated[Path | None, typer.Option(help="HTML file; default: DIR/report.html.")] = None) -> None:
     """Write report.html: one self-contained page of the run (config, scene, flight, frames, detections, counts, times)."""
     typer.echo(f"report: wrote {write_report(run_dir, out)}")
+
+
+@app.command(name="eval")
+def evaluate_seeds(
+    out: Out,
+    seeds: Annotated[str, typer.Option(help="Seeds to run: 0-19, 3, or 0,4,7-9.", show_default=False)],
+    preset: Preset = "paper",
+    config: ConfigFile = None,
+    workers: Annotated[int, typer.Option(min=1, max=1024, help="Runs at once (processes, or Ray tasks).")] = 1,
+    executor: Executor = "local",
+    address: Address = None,
+    force: Force = False,
+) -> None:
+    """The paper's experiment: one full run per seed, then the yield table (eval.csv, eval.json)."""
+    if executor not in ("local", "ray"):
+        raise UserError(f"--executor {executor}: choose from local, ray")
+    seed_list = parse_seeds(seeds)
+    base = load_config(preset, config)
+    with _progress_bar("eval") as progress:
+        scenarios = evaluate(base, seed_list, out, workers, executor, address, force, progress)
+    write_eval(out, scenarios)
+    typer.echo(format_table(scenarios))
+    typer.echo(f"eval: wrote {out / 'eval.csv'} and {out / 'eval.json'}")
+
+
+@app.command()
+def export(
+    run_dir: RunDir,
+    rosbag: Annotated[Path | None, typer.Option(help="ROS 2 bag directory to write (MCAP storage).")] = None,
+    rerun: Annotated[Path | None, typer.Option(help="Rerun recording to write (.rrd).")] = None,
+    every: Annotated[int, typer.Option(min=1, max=1_000_000, help="Images and clouds of every Nth frame only.")] = 1,
+    force: Annotated[bool, typer.Option("--force", help="Replace outputs that exist.")] = False,
+) -> None:
+    """Export a run as a ROS 2 bag (RViz, Foxglove) and/or a Rerun recording; says what the run lacks (exit 2)."""
+    missing = export_run(run_dir, rosbag, rerun, every, force, typer.echo)
+    if missing:
+        raise UserError(f"{run_dir}: exported without {', '.join(missing)}")
 
 
 @app.command()

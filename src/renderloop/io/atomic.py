@@ -10,9 +10,13 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
+
+from renderloop.errors import UserError
 
 TEMP_SUFFIX = ".partial"
 
@@ -34,6 +38,30 @@ def atomic_path(path: Path) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+@contextmanager
+def atomic_directory(path: Path, replace: bool = False) -> Iterator[Path]:
+    """Yield a path for a new directory (which does not exist yet) that appears at `path` only when the block succeeds.
+
+    The directory is built inside a hidden staging folder beside `path` and renamed out,
+    so it keeps its own name inside (a ROS 2 bag names its files after its folder).
+    An existing `path` is refused unless `replace`, and then it is swapped out last.
+    """
+    path = Path(path)
+    if path.exists() and not replace:
+        raise UserError(f"{path}: exists; use --force to replace it")
+    staging = temporary_path(path)
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir(parents=True)
+    try:
+        yield staging / path.name
+        old = staging / f"{path.name}.old"
+        if path.exists():
+            os.replace(path, old)
+        os.replace(staging / path.name, path)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
 
 
 def write_text(path: Path, text: str) -> None:

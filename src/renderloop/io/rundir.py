@@ -44,10 +44,15 @@ def require(run_dir: Path, names: tuple[str, ...], stage: str) -> None:
         raise UserError(f"{run_dir}: missing {', '.join(missing)} (run `renderloop {stage}` first)")
 
 
+def _what_it_computes(config: Config) -> Config:
+    """The config less the renderer's thread count, which decides how fast frames come, not what they hold."""
+    return config.model_copy(update={"renderer": config.renderer.model_copy(update={"threads": 0})})
+
+
 def check_config(run_dir: Path, config: Config) -> None:
     """Refuse to add files of one config to a run directory made with another."""
     path = run_dir / CONFIG_FILE
-    if path.is_file() and load_resolved(path) != config:
+    if path.is_file() and _what_it_computes(load_resolved(path)) != _what_it_computes(config):
         raise UserError(
             f"{path}: this run directory was made with another config; "
             "use --force to start it again, or another --out"

@@ -53,7 +53,8 @@ def _manifest(run_dir: Path, config: Config, backend: str, poses: np.ndarray) ->
         "scene_sha256": _sha256((run_dir / "scene.json").read_bytes()),
         "seed": config.seed,
         "camera": config.camera.model_dump(mode="json"),
-        "renderer": config.renderer.model_dump(mode="json", exclude={"backend"}),
+        # the thread count says how fast frames come, not what they hold (kept at 0 so older records still match)
+        "renderer": {**config.renderer.model_dump(mode="json", exclude={"backend"}), "threads": 0},
     }
 
 

@@ -25,13 +25,22 @@ from renderloop.perception.training.torch_support import import_torchvision
 
 torchvision = import_torchvision()
 from torchvision.models.detection import ssdlite320_mobilenet_v3_large
+from torchvision.models.detection.anchor_utils import DefaultBoxGenerator
 from torchvision.models.detection.image_list import ImageList
 
 OPSET = 17
+# Default-box scales (fraction of the input) of the six feature maps, and the extra one
+# the last map's second square box uses. torchvision's SSDlite starts at 0.2 (64 px), but
+# half of our training fruit are under 22 px at the input: with boxes that large no
+# anchor overlaps them by IoU 0.5 and small fruit were learned from one anchor each.
+# Two boxes per map and four ratios each, as torchvision's, so the head keeps its shape.
+ANCHOR_SCALES = [0.04, 0.08, 0.16, 0.32, 0.52, 0.76, 1.0]
 
 
 def build_model() -> nn.Module:
-    return ssdlite320_mobilenet_v3_large(weights=None, weights_backbone=None, num_classes=len(CLASSES) + 1)
+    model = ssdlite320_mobilenet_v3_large(weights=None, weights_backbone=None, num_classes=len(CLASSES) + 1)
+    model.anchor_generator = DefaultBoxGenerator([[2, 3] for _ in range(6)], scales=ANCHOR_SCALES)
+    return model
 
 
 class DecodedSSD(nn.Module):

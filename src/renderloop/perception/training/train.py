@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import pickle
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -66,8 +67,16 @@ def _save_checkpoint(path: Path, state: dict) -> None:
         torch.save(state, tmp)
 
 
+def _initial_weights(path: Path) -> dict:
+    """The model weights of an earlier run's checkpoint: fine-tuning on a grown dataset starts there."""
+    try:
+        return torch.load(path, map_location="cpu", weights_only=True)["model"]
+    except (OSError, RuntimeError, KeyError, TypeError, EOFError, pickle.UnpicklingError) as error:
+        raise UserError(f"--init {path}: not a renderloop training checkpoint ({type(error).__name__})") from None
+
+
 def train_detector(dataset: Path, out: Path, settings: TrainSettings, device: str = "auto", workers: int = 1,
-                   log: Log = print) -> dict:
+                   log: Log = print, init: Path | None = None) -> dict:
     dataset, out = Path(dataset), Path(out)
     if out.suffix != ".onnx":
         raise UserError(f"--out {out}: the model file must end in .onnx")
@@ -83,15 +92,18 @@ def train_detector(dataset: Path, out: Path, settings: TrainSettings, device: st
         collate_fn=collate, num_workers=workers, persistent_workers=workers > 0,
         generator=torch.Generator().manual_seed(settings.seed),
     )
-    model = build_model().to(run_device)
+    model = build_model()
+    if init is not None:
+        model.load_state_dict(_initial_weights(Path(init)))
+    model = model.to(run_device)
     optimizer = torch.optim.AdamW(model.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _schedule(settings, len(loader)))
     schedule = {k: v for k, v in asdict(settings).items() if k != "max_steps"}  # what a resumed run must share
-    record = {"settings": schedule, "dataset": str(dataset), "train_images": len(train_set),
+    record = {"settings": schedule, "init": str(init) if init else None, "dataset": str(dataset), "train_images": len(train_set),
               "val_images": len(val_set), "classes": list(CLASSES), "history": []}
     start_epoch = 0
     if checkpoint_path.is_file():
-        state = torch.load(checkpoint_path, map_location=run_device, weights_only=False)
+        state = torch.load(checkpoint_path, map_location=run_device, weights_only=True)  # tensors and plain data: nothing runs
         if state["record"]["settings"] != record["settings"] or state["record"]["train_images"] != len(train_set):
             raise UserError(f"{checkpoint_path}: a checkpoint of other settings or data; delete it to start over")
         model.load_state_dict(state["model"])

@@ -1,0 +1,85 @@
+"""`renderloop eval`: one full run per seed, on local processes or Ray tasks, then the table.
+
+Each seed is one run directory `OUT/seed_<n>` made by the same pipeline as `renderloop run`,
+so an interrupted evaluation resumes stage by stage and a single seed can be inspected
+(or reported) like any run. Runs share the cores: each renderer gets cores / workers
+threads. With Ray, OUT must be on a file system every node sees.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing import get_context
+from pathlib import Path
+
+from rich.console import Console
+
+from renderloop.config import Config
+from renderloop.evaluation.table import Scenario, scenario
+from renderloop.io import rundir
+from renderloop.pipeline import run_pipeline
+from renderloop.render.executor import (
+    ray_session,
+    spawnable_sys_path,
+    threads_per_worker,
+)
+
+Progress = Callable[[int, int], None]
+
+
+def run_dir_of(out: Path, seed: int) -> Path:
+    return Path(out) / f"seed_{seed}"
+
+
+def run_seed(out: Path, config: Config, force: bool) -> Scenario:
+    """One scenario end to end, quietly (many run at once; the caller shows one progress bar)."""
+    run_dir = run_dir_of(out, config.seed)
+    run_pipeline(run_dir, config, force, Console(file=io.StringIO()))
+    return scenario(config.seed, run_dir)
+
+
+def _local(out: Path, configs: list[Config], force: bool, workers: int) -> Iterator[Scenario]:
+    if workers <= 1:
+        for config in configs:
+            yield run_seed(out, config, force)
+        return
+    # spawn, not fork: the runs render with Blender and MuJoCo, neither survives a fork
+    with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
+        with spawnable_sys_path():
+            futures = [pool.submit(run_seed, out, config, force) for config in configs]
+        for future in as_completed(futures):
+            yield future.result()
+
+
+def _ray(out: Path, configs: list[Config], force: bool, workers: int, address: str | None) -> Iterator[Scenario]:
+    import ray
+
+    with ray_session(workers, address):
+        task = ray.remote(num_cpus=1)(run_seed)
+        pending = [task.remote(out, config, force) for config in configs]
+        while pending:
+            [finished], pending = ray.wait(pending, num_returns=1)
+            yield ray.get(finished)
+
+
+def evaluate(base: Config, seeds: list[int], out: Path, workers: int = 1, executor: str = "local",
+             address: str | None = None, force: bool = False, progress: Progress | None = None) -> list[Scenario]:
+    """Every seed's scenario, in seed order; `progress` hears (runs finished, runs) as they finish."""
+    out = rundir.check_target(Path(out))
+    out.mkdir(parents=True, exist_ok=True)
+    shared = threads_per_worker(base, workers)
+    configs = [shared.model_copy(update={"seed": seed}) for seed in seeds]
+    if not force:  # refuse before any work, not after hours of it
+        for config in configs:
+            rundir.check_config(run_dir_of(out, config.seed), config)
+    runs = _ray(out, configs, force, workers, address) if executor == "ray" else _local(out, configs, force, workers)
+    finished: list[Scenario] = []
+    if progress:
+        progress(0, len(configs))
+    for result in runs:
+        finished.append(result)
+        if progress:
+            progress(len(finished), len(configs))
+    return sorted(finished, key=lambda s: seeds.index(s.seed))
