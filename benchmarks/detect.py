@@ -62,6 +62,30 @@ def open3d_cloud_ms(depth: np.ndarray, intrinsics: Intrinsics, repeats: int) -> 
                                                                        project_valid_depth_only=False), repeats)
 
 
+def torch_and_onnx_ms(frame: np.ndarray, repeats: int) -> tuple[list[float], list[float]]:
+    """The same network (random weights: the shipped ONNX file carries no torch weights) through torch and through
+    ONNX Runtime, each with its own post-processing (torchvision's, ours in numpy), at the same thread count."""
+    import tempfile
+    from pathlib import Path
+
+    import torch
+
+    from renderloop.perception.detector import to_input
+    from renderloop.perception.training.ssd import build_model, export_onnx
+
+    torch.manual_seed(0)
+    model = build_model().eval()
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "same.onnx"
+        export_onnx(model, path)
+        onnx = Detector(path, threads=2)
+    torch.set_num_threads(2)
+    image = torch.from_numpy(to_input(frame))[0]
+    with torch.no_grad():
+        torch_ms = timed(lambda: model([image]), repeats)
+    return torch_ms, timed(lambda: onnx.detect(frame, 0.5), repeats)
+
+
 def training_images_per_second(steps: int, batch: int = 16) -> dict[str, float]:
     import torch
 
@@ -104,6 +128,10 @@ def main() -> None:
         "detector_ms_per_frame": summary(timed(lambda: detector.detect(frame, 0.5), args.repeats)),
         "cloud_ms_per_frame": summary(timed(lambda: organised_cloud(depth, intrinsics), args.repeats)),
     }
+    torch_ms, onnx_ms = torch_and_onnx_ms(frame, args.repeats)
+    figures["torch_model_ms_per_frame"] = summary(torch_ms)
+    figures["same_model_onnx_ms_per_frame"] = summary(onnx_ms)
+    figures["onnx_speed_vs_torch"] = figures["torch_model_ms_per_frame"]["median"] / figures["same_model_onnx_ms_per_frame"]["median"]
     reference = open3d_cloud_ms(depth, intrinsics, args.repeats)
     if reference is not None:
         figures["open3d_cloud_ms_per_frame"] = summary(reference)

@@ -5,7 +5,8 @@ Figures measured side by side in one run on this machine:
   frame, and the share inside path tracing (Cycles' render_time over the wall time of a frame);
 - raster backend, milliseconds per 640x480 frame;
 - frames per second of the whole render stage (PNG encoding and writing included) on the
-  demo run with 1 and 2 local workers, Cycles at the demo's default quality.
+  demo run with 1 and 2 local workers and on a local 2-CPU Ray cluster, Cycles at the demo's
+  default quality.
 Medians over repeats, with min and max.
 
     .venv/bin/python benchmarks/render.py [--repeats 3] [--high-samples 128] [--json out.json]
@@ -43,9 +44,9 @@ def cycles_frames(scene, config, poses) -> tuple[list[float], list[float]]:
     return seconds, shares
 
 
-def stage_fps(workers: int, run_dir: Path, config) -> float:
+def stage_fps(workers: int, run_dir: Path, config, executor: str = "local") -> float:
     start = time.perf_counter()
-    run_render(run_dir, config, force=True, workers=workers)
+    run_render(run_dir, config, force=True, workers=workers, executor=executor)
     return len(list((run_dir / "rgb").iterdir())) / (time.perf_counter() - start)
 
 
@@ -74,6 +75,7 @@ def main() -> None:
         run_plan(run_dir, demo)
         run_fly(run_dir, demo)
         fps = {workers: stage_fps(workers, run_dir, demo) for workers in (1, 2)}
+        fps["ray"] = stage_fps(2, run_dir, demo, executor="ray")  # a local 2-CPU Ray cluster, started inside the timing
 
     results = {
         "cycles_default_s_per_frame": summary(default_seconds),
@@ -84,6 +86,8 @@ def main() -> None:
         "render_stage_fps_1_worker": fps[1],
         "render_stage_fps_2_workers": fps[2],
         "speedup_2_workers": fps[2] / fps[1],
+        "render_stage_fps_ray_2_cpus": fps["ray"],
+        "speedup_ray_2_cpus": fps["ray"] / fps[1],
         "default_quality": paper.renderer.model_dump(mode="json"),
     }
     print(f"render benchmark: paper scene 640x480 ({paper.renderer.samples} spp, denoise {paper.renderer.denoise_quality}); "

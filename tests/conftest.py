@@ -56,6 +56,22 @@ def fly_demo_raster(run_dir: Path, rate_hz: float = 0.25) -> Path:
     return run_dir
 
 
+@pytest.fixture(scope="session")
+def complete_run(tmp_path_factory) -> Path:
+    """The demo scenario through every stage up to count, raster frames every 4 s: a test copies it before changing it."""
+    from renderloop.counting.stage import run_count
+    from renderloop.io.rundir import read_config
+    from renderloop.perception.stage import run_detect
+    from renderloop.render.stage import run_render
+
+    run_dir = fly_demo_raster(tmp_path_factory.mktemp("complete") / "run")
+    config = read_config(run_dir)
+    run_render(run_dir, config)
+    run_detect(run_dir, config)
+    run_count(run_dir, config)
+    return run_dir
+
+
 def cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
     """Run the real entry point in-process: exit code, stdout, stderr."""
     monkeypatch.setattr(sys, "argv", ["renderloop", *args])

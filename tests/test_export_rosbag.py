@@ -12,25 +12,17 @@ from conftest import cli, fly_demo_raster
 from rosbags.highlevel import AnyReader
 from scipy.spatial.transform import Rotation
 
-from renderloop.counting.stage import run_count
 from renderloop.export.command import export_run
 from renderloop.export.rosbag import LINKS, OPTICAL_FRAME
-from renderloop.io.rundir import read_config
 from renderloop.perception.pointcloud import organised_cloud
-from renderloop.perception.stage import run_detect
 from renderloop.render.camera import read_camera_info
 from renderloop.render.frames import decode_depth, read_png
-from renderloop.render.stage import load_poses, run_render
+from renderloop.render.stage import load_poses
 
 
 @pytest.fixture(scope="module")
-def run_dir(tmp_path_factory) -> Path:
-    run_dir = fly_demo_raster(tmp_path_factory.mktemp("export") / "run", rate_hz=0.2)
-    config = read_config(run_dir)
-    run_render(run_dir, config)
-    run_detect(run_dir, config)
-    run_count(run_dir, config)
-    return run_dir
+def run_dir(complete_run: Path) -> Path:
+    return complete_run
 
 
 @pytest.fixture(scope="module")

@@ -13,6 +13,8 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from typer.exceptions import Abort as TyperAbort
+from typer.exceptions import TyperException
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -26,6 +28,7 @@ from renderloop.evaluation.runner import evaluate
 from renderloop.evaluation.seeds import parse_seeds
 from renderloop.evaluation.table import format_table, write_eval
 from renderloop.export.command import export_run
+from renderloop.io.atomic import final_path
 from renderloop.io.rundir import read_config
 from renderloop.perception.photos import detect_photos
 from renderloop.perception.stage import run_detect
@@ -254,11 +257,19 @@ def run(out: Out, preset: Preset = "demo", config: ConfigFile = None, seed: Seed
 
 def main() -> None:
     try:
-        app()
+        code = app(standalone_mode=False)  # click's usage errors come here instead of a usage block
+    except TyperException as error:  # an option out of range, a missing one: bad input like any other
+        message = " ".join(error.format_message().split())
+        if message:  # empty after the help that no arguments print
+            print(f"renderloop: error: {message}", file=sys.stderr)
+        sys.exit(2)
+    except TyperAbort:  # Ctrl-C
+        sys.exit(130)
     except UserError as error:
         print(f"renderloop: error: {error}", file=sys.stderr)
         sys.exit(2)
-    except OSError as error:
-        where = f" {error.filename}" if error.filename else ""
+    except OSError as error:  # the machine, not the input: a full disk, a directory we may not write
+        where = f" {final_path(Path(error.filename))}:" if error.filename else ""
         print(f"renderloop: error:{where} {error.strerror or error}", file=sys.stderr)
         sys.exit(1)
+    sys.exit(code if isinstance(code, int) else 0)

@@ -12,7 +12,6 @@ Breunig et al. 2000).
 from __future__ import annotations
 
 import numpy as np
-from sklearn.neighbors import LocalOutlierFactor
 
 from renderloop.scene.model import Row, Scene
 
@@ -79,6 +78,8 @@ def lof_inliers(points: np.ndarray, n_neighbors: int) -> np.ndarray:
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     if len(points) < 3:
         return np.ones(len(points), dtype=bool)
+    from sklearn.neighbors import LocalOutlierFactor  # here: see cluster.py
+
     lof = LocalOutlierFactor(n_neighbors=min(n_neighbors, len(points) - 1))
     return lof.fit_predict(points) == 1
 

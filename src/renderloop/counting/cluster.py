@@ -30,7 +30,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from sklearn.cluster import OPTICS
 
 from renderloop.config import CountingConfig
 from renderloop.counting.assign import (
@@ -118,6 +117,9 @@ def cluster_row(detections: np.ndarray, params: ClusterParams, rng: np.random.Ge
     if n_init < params.min_views:  # nobody saw a pepper twice: nothing to count
         empty = np.zeros((0, 3))
         return RowClusters(detections, np.ones(n_init, dtype=bool), -np.ones(n_init, dtype=int), empty, n_init, 0)
+    # imported here, not at the top: scikit-learn would cost every CLI verb a second
+    from sklearn.cluster import OPTICS
+
     points, original = resample(detections, params.points, params.noise_std, rng)
     min_samples = min_samples_for(n_init, params.points, params.min_views)
     optics = OPTICS(min_samples=min_samples, max_eps=params.eps, cluster_method=params.method,

@@ -50,7 +50,7 @@ from renderloop.config import Config, CountingConfig
 from renderloop.counting.cluster import CLASSES, RowCount, count_rows
 from renderloop.counting.harvest import plan_harvest
 from renderloop.counting.plots import draw_row
-from renderloop.errors import UserError
+from renderloop.errors import UserError, field_path
 from renderloop.io import rundir
 from renderloop.io.atomic import write_json
 from renderloop.io.tum import read_tum
@@ -109,7 +109,7 @@ def read_detections(run_dir: Path, frame_count: int) -> Detections:
         data = Detections.model_validate_json(path.read_bytes())
     except ValidationError as exc:
         error = exc.errors()[0]
-        field = ".".join(str(part) for part in error["loc"])
+        field = field_path(error["loc"])
         message = error["msg"].removeprefix("Value error, ")
         if error["type"] == "extra_forbidden":
             message = "unknown field"

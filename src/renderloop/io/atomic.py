@@ -25,6 +25,14 @@ def temporary_path(path: Path) -> Path:
     return path.with_name(f".{path.name}{TEMP_SUFFIX}")
 
 
+def final_path(path: Path) -> Path:
+    """The file a temporary name stands for: what an error message should name."""
+    name = path.name
+    if name.startswith(".") and name.endswith(TEMP_SUFFIX):
+        return path.with_name(name[1 : -len(TEMP_SUFFIX)])
+    return path
+
+
 @contextmanager
 def atomic_path(path: Path) -> Iterator[Path]:
     """Yield a temporary path to write to; rename it onto `path` only if the block succeeds."""
@@ -35,6 +43,11 @@ def atomic_path(path: Path) -> Iterator[Path]:
         with open(tmp, "rb") as written:
             os.fsync(written.fileno())
         os.replace(tmp, path)
+    except OSError as error:
+        tmp.unlink(missing_ok=True)
+        if error.filename is None:  # a write through a file object (numpy, PIL) does not say which file failed
+            raise OSError(error.errno, error.strerror, str(path)) from error
+        raise
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

@@ -15,7 +15,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from renderloop.errors import UserError
+from renderloop.errors import UserError, field_path
 
 FORMAT_VERSION = 1
 MAX_PEPPER_ID = 32767
@@ -141,7 +141,7 @@ def load_scene(path: Path) -> Scene:
         scene = Scene.model_validate(data)
     except ValidationError as exc:
         error = exc.errors()[0]
-        field = ".".join(str(part) for part in error["loc"]) or "scene"
+        field = field_path(error["loc"]) or "scene"
         raise UserError(f"{path}: {field}: {error['msg']}") from None
     if scene.format_version != FORMAT_VERSION:
         raise UserError(f"{path}: format_version {scene.format_version} is not {FORMAT_VERSION}")

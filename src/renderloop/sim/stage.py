@@ -54,6 +54,8 @@ def run_fly(run_dir: Path, config: Config, force: bool = False) -> bool:
     if not force and rundir.complete(run_dir, OUTPUTS, INPUTS):
         return False
     table = read_csv(run_dir / "trajectory.csv", HEADER)
+    waypoints = read_waypoints(run_dir / "waypoints.csv")  # every input is read before any output is replaced
+    scene = load_scene(run_dir / "scene.json")
     reference = Reference(table[:, 0], table[:, 1:8], table[:, 8:15], table[:, 15:22])
     model = mujoco.MjModel.from_xml_path(str(run_dir / "world.xml"))
     log = fly(model, config, reference)
@@ -62,7 +64,6 @@ def run_fly(run_dir: Path, config: Config, force: bool = False) -> bool:
 
     write_csv(run_dir / "flight.csv", FLIGHT_HEADER, flight_table(log, planned_camera), fmt=["%.6f"] * 30 + ["%d", "%d"])
     write_tum(run_dir / "groundtruth.txt", log.t[frames], log.camera_position[frames], log.camera_rotation[frames], GROUNDTRUTH_COMMENT)
-    scene = load_scene(run_dir / "scene.json")
-    draw_flight_paths(scene, read_waypoints(run_dir / "waypoints.csv"), log, planned_camera, run_dir / "flight_paths.png")
+    draw_flight_paths(scene, waypoints, log, planned_camera, run_dir / "flight_paths.png")
     draw_tracking_error(log, planned_camera, run_dir / "tracking_error.png")
     return True

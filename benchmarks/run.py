@@ -1,0 +1,142 @@
+"""Every stage measured on this machine, in one table: each figure beside its reference from the same run.
+
+Runs benchmarks/fly.py, render.py and detect.py (each measures side by side in its own
+process, so one's threads and caches do not colour another's figures), times the counting
+of paper rows here, and runs the whole demo and paper pipelines as child processes for wall
+time and peak memory (the maximum resident set of the largest process, as /usr/bin/time -v
+reports it). Medians over repeats, with min and max. The paper run renders at
+--paper-rate-hz (the preset's 5 Hz is some 3 000 Cycles frames, hours on two cores).
+
+    .venv/bin/python benchmarks/run.py [--quick] [--json benchmarks.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+from common import summary
+
+from renderloop.config import load_config
+from renderloop.counting.cluster import count_rows
+from renderloop.scene.generate import generate_scene
+
+HERE = Path(__file__).resolve().parent
+Row = tuple[str, dict | float | None, str, float | None]  # figure, measured, reference, ratio
+
+
+def sub_benchmark(name: str, *args: str) -> dict:
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder) / f"{name}.json"
+        subprocess.run([sys.executable, str(HERE / f"{name}.py"), *args, "--json", str(out)], check=True)
+        return json.loads(out.read_text())
+
+
+def counting_ms_per_row(repeats: int) -> dict:
+    """The paper scene's rows counted from 8 noisy views of every ripe fruit plus 10 % strays: the count stage's work."""
+    config = load_config("paper", seed=7)
+    scene = generate_scene(config)
+    rng = np.random.default_rng(0)
+    centres = np.array([p.center for p in scene.peppers if p.ripe])
+    views = np.repeat(centres, 8, axis=0) + rng.normal(0.0, 0.01, (8 * len(centres), 3))
+    strays = views[rng.choice(len(views), len(views) // 10)] + rng.normal(0.0, 0.3, (len(views) // 10, 3))
+    detections = np.vstack([views, strays])
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        count_rows(scene, detections, "ripe", config.counting, config.seed)
+        times.append((time.perf_counter() - start) * 1000 / len(scene.rows))
+    return summary(times)
+
+
+def whole_run(preset: str, overrides: dict, repeats: int) -> tuple[dict, dict]:
+    """Wall seconds and peak resident MB of `renderloop run` from nothing, each repeat in a fresh directory."""
+    seconds, megabytes = [], []
+    wrapper = ("import resource, subprocess, sys; subprocess.run(sys.argv[1:], check=True, capture_output=True); "
+               "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
+    for _ in range(repeats):
+        with tempfile.TemporaryDirectory() as folder:
+            config = Path(folder) / "config.yaml"
+            config.write_text(yaml.safe_dump(overrides))
+            command = [sys.executable, "-m", "renderloop", "run", "--preset", preset, "--config", str(config), "--out", f"{folder}/run"]
+            start = time.perf_counter()
+            peak_kb = subprocess.run([sys.executable, "-c", wrapper, *command], check=True, capture_output=True, text=True).stdout
+            seconds.append(time.perf_counter() - start)
+            megabytes.append(int(peak_kb) / 1024)
+    return summary(seconds), summary(megabytes)
+
+
+def rows_of(results: dict, paper_rate: float, quick: bool) -> list[Row]:
+    fly, render, detect = results["fly"], results["render"], results["detect"]
+    high = next(k for k in render if k.startswith("cycles_") and k.endswith("spp_s_per_frame") and "default" not in k)
+    rows: list[Row] = [
+        ("fly: closed-loop real-time factor", fly["closed_loop_real_time_factor"], "1x real time (Gazebo/RotorS)",
+         fly["closed_loop_real_time_factor"]["median"]),
+        ("fly: physics steps per s (closed loop)", fly["closed_loop_physics_steps_per_s"], "", None),
+        ("render: Cycles s per 640x480 frame, default", render["cycles_default_s_per_frame"], f"{high.split('_')[1]}: s per frame",
+         render[high]["median"] / render["cycles_default_s_per_frame"]["median"]),
+        (f"render: Cycles s per frame, {high.split('_')[1]}", render[high], "", None),
+        ("render: share inside path tracing, default", render["cycles_default_path_tracing_share"], "goal 0.90", None),
+        ("render: raster ms per 640x480 frame", render["raster_ms_per_frame"], "Cycles default",
+         1000 * render["cycles_default_s_per_frame"]["median"] / render["raster_ms_per_frame"]["median"]),
+        ("render stage: frames per s, 2 workers", render["render_stage_fps_2_workers"], "1 worker", render["speedup_2_workers"]),
+        ("render stage: frames per s, Ray 2 CPUs", render["render_stage_fps_ray_2_cpus"], "1 worker", render["speedup_ray_2_cpus"]),
+        ("point cloud ms per 640x480 frame", detect["cloud_ms_per_frame"], "Open3D create_from_depth_image",
+         detect.get("cloud_speed_vs_open3d")),
+        ("detector ms per frame, ONNX Runtime", detect["same_model_onnx_ms_per_frame"], "the torch model", detect["onnx_speed_vs_torch"]),
+        ("shipped detector ms per 640x480 frame", detect["detector_ms_per_frame"], "goal 15 ms", None),
+        ("counting ms per paper row", results["counting_ms_per_row"], "", None),
+        ("demo run: wall s (raster)" if quick else "demo run: wall s", results["demo_seconds"], "goal 300 s",
+         300 / results["demo_seconds"]["median"]),
+        ("demo run: peak MB", results["demo_peak_mb"], "", None),
+        (f"paper run, camera {paper_rate:g} Hz: wall s", results["paper_seconds"], "", None),
+        ("paper run: peak MB", results["paper_peak_mb"], "", None),
+    ]
+    return rows
+
+
+def print_table(rows: list[Row]) -> None:
+    print(f"{'figure':<44}{'median':>10}{'min':>10}{'max':>10}  {'reference':<32}{'ratio':>7}")
+    for name, value, reference, ratio in rows:
+        if isinstance(value, dict):
+            numbers = f"{value['median']:>10.3g}{value['min']:>10.3g}{value['max']:>10.3g}"
+        else:
+            numbers = f"{value:>10.3g}{'':>20}"
+        print(f"{name:<44}{numbers}  {reference:<32}{'' if ratio is None else f'{ratio:.2f}x':>7}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="few repeats, raster demo and paper runs: a minutes-long smoke run")
+    parser.add_argument("--paper-rate-hz", type=float, default=0.2, help="camera rate of the paper run (0.2 Hz: 125 frames)")
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+    repeats = 1 if args.quick else 3
+    results = {
+        "fly": sub_benchmark("fly", "--repeats", str(repeats), "--seconds", "20" if args.quick else "60"),
+        "render": sub_benchmark("render", "--repeats", str(repeats)),
+        "detect": sub_benchmark("detect", "--repeats", "10" if args.quick else "30", "--train-steps", "0"),
+        "counting_ms_per_row": counting_ms_per_row(3 if args.quick else 10),
+    }
+    raster = {"renderer": {"backend": "raster"}} if args.quick else {}
+    results["demo_seconds"], results["demo_peak_mb"] = whole_run("demo", raster, repeats)
+    paper = {**raster, "camera": {"rate_hz": args.paper_rate_hz}}
+    results["paper_seconds"], results["paper_peak_mb"] = whole_run("paper", paper, 1)
+    rows = rows_of(results, args.paper_rate_hz, args.quick)
+    print(f"\nrenderloop benchmarks, {time.strftime('%Y-%m-%d')}, {len(os.sched_getaffinity(0))} cores"
+          f"{' (quick: raster runs, one repeat)' if args.quick else ''}")
+    print_table(rows)
+    if args.json:
+        args.json.write_text(json.dumps({"results": results, "table": rows}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,127 @@
+"""Failure behaviour of a whole run: SIGKILL at moments across the stages, an unwritable directory, a full disk.
+
+Each case runs the real `renderloop run` as a child process on a fast config (raster
+renderer, a frame every 4 s), so the kill lands wherever the operating system stops
+it, as it would for a user's Ctrl-\\ or an out-of-memory killer.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+FAST = {"renderer": {"backend": "raster"}, "camera": {"rate_hz": 0.25}}
+VOLATILE = {"timings.json"}  # seconds of each stage: the one file that may differ between two runs
+Trigger = Callable[[Path], bool]
+
+
+def _exists(name: str) -> Trigger:
+    return lambda run_dir: (run_dir / name).exists()
+
+
+# Each a moment inside one stage: the first file that stage writes has appeared and it is still working.
+KILL_POINTS: dict[str, Trigger] = {
+    "scene": _exists("config.yaml"),
+    "plan": _exists("waypoints.csv"),
+    "fly": _exists("trajectory.csv"),
+    "render": _exists("masks/000004.png"),
+    "detect": _exists(".detections.cache.jsonl"),
+    "count": _exists("detections.png"),
+}
+
+
+def _command(config: Path, out: Path) -> list[str]:
+    return [sys.executable, "-m", "renderloop", "run", "--config", str(config), "--out", str(out)]
+
+
+def _files(run_dir: Path) -> dict[str, str]:
+    return {str(path.relative_to(run_dir)): hashlib.sha256(path.read_bytes()).hexdigest()
+            for path in sorted(run_dir.rglob("*")) if path.is_file() and path.name not in VOLATILE}
+
+
+@pytest.fixture(scope="module")
+def config(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("faults") / "fast.yaml"
+    path.write_text(yaml.safe_dump(FAST))
+    return path
+
+
+@pytest.fixture(scope="module")
+def reference(config: Path, tmp_path_factory) -> dict[str, str]:
+    """The files of an uninterrupted run of the same config."""
+    out = tmp_path_factory.mktemp("faults") / "reference"
+    subprocess.run(_command(config, out), check=True, capture_output=True)
+    return _files(out)
+
+
+@pytest.mark.parametrize("stage", list(KILL_POINTS))
+def test_a_run_killed_in_any_stage_resumes_to_the_same_files(stage: str, config: Path, reference: dict[str, str], tmp_path: Path):
+    out = tmp_path / "run"
+    delay = np.random.default_rng(sorted(KILL_POINTS).index(stage)).uniform(0.0, 0.05)  # a moment past the trigger
+    child = subprocess.Popen(_command(config, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        while child.poll() is None and not KILL_POINTS[stage](out):
+            time.sleep(0.002)
+        time.sleep(delay)
+        child.send_signal(signal.SIGKILL)
+    finally:
+        child.wait()
+    assert child.returncode == -signal.SIGKILL, f"the run ended before the kill point in {stage}"
+    assert _files(out) != reference  # it really stopped short
+
+    subprocess.run(_command(config, out), check=True, capture_output=True)
+    assert _files(out) == reference
+    assert not [p for p in out.rglob("*") if p.name.endswith(".partial") or p.name.startswith(".detections.cache")]
+
+
+def _restricted(command: list[str]) -> list[str]:
+    """Root writes anywhere; without CAP_DAC_OVERRIDE it meets the permission bits like any user."""
+    if os.geteuid() != 0:
+        return command
+    if not shutil.which("setpriv"):
+        pytest.skip("running as root without util-linux's setpriv to drop the override capability")
+    return ["setpriv", "--bounding-set=-dac_override,-dac_read_search", *command]
+
+
+def test_an_unwritable_run_directory_is_one_clear_line_and_keeps_its_files(config: Path, tmp_path: Path):
+    out = tmp_path / "run"
+    subprocess.run(_command(config, out), check=True, capture_output=True)
+    (out / "counts.json").unlink()  # the count stage must write again, into a directory it may not write
+    before = _files(out)
+    out.chmod(0o555)
+    try:
+        ended = subprocess.run(_restricted(_command(config, out)), capture_output=True, text=True)
+    finally:
+        out.chmod(0o755)
+    last = ended.stderr.strip().splitlines()[-1]
+    assert ended.returncode == 1 and "Traceback" not in ended.stderr
+    assert last.startswith("renderloop: error: ") and "Permission denied" in last and str(out) in last
+    assert _files(out) == before
+
+
+def test_a_full_disk_is_one_clear_line_and_every_file_left_is_complete(config: Path, reference: dict[str, str], tmp_path: Path):
+    """RLIMIT_FSIZE makes every write past the limit fail as ENOSPC would, with no root and no loop device."""
+    import resource
+
+    out = tmp_path / "run"
+    limit = 300_000  # bytes: room for the scene's files, not for the 100 Hz trajectory that follows
+    ended = subprocess.run(_command(config, out), capture_output=True, text=True,
+                           preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit)))
+    last = ended.stderr.strip().splitlines()[-1]
+    assert ended.returncode == 1 and "Traceback" not in ended.stderr
+    assert last.startswith(f"renderloop: error: {out}/") and last.endswith("File too large")
+    left = _files(out)
+    assert left and all(reference[name] == digest for name, digest in left.items())  # complete, or not there at all
+    subprocess.run(_command(config, out), check=True, capture_output=True)  # room again: the run finishes
+    assert _files(out) == reference
