@@ -64,16 +64,16 @@ def test_fruit_points_from_truth_boxes_lie_on_their_pepper(frames):
             if len(rows) < 150:  # a sliver at the image edge or behind leaves: no box a detector would give
                 continue
             pepper = next(p for p in scene.peppers if p.id == pid)
-            point = fruit_point(cloud, (cols.min(), rows.min(), cols.max() + 1, rows.max() + 1))
+            point = fruit_point(cloud, (cols.min(), rows.min(), cols.max() + 1, rows.max() + 1), intrinsics.fx)
             assert point is not None
             world = pose[:3, :3] @ point + pose[:3, 3]
             errors.append(np.linalg.norm(world - pepper.center) / pepper.radius)
     errors = np.array(errors)
     assert len(errors) > 50
     assert np.mean(errors <= 1.0) >= 0.9  # on the pepper (its bounding sphere) for nine boxes in ten
-    assert np.median(errors) < 0.8
+    assert np.median(errors) < 0.4  # the centre, not the skin: the skin's centroid alone sat at 0.6-0.7 radii
 
 
 def test_an_empty_box_has_no_fruit_point():
     cloud = np.full((10, 10, 3), np.nan, dtype=np.float32)
-    assert fruit_point(cloud, (2, 2, 8, 8)) is None
+    assert fruit_point(cloud, (2, 2, 8, 8), 500.0) is None

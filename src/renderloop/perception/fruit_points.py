@@ -6,6 +6,13 @@ as a pepper's visible skin, the one holding most of the points in the box's cent
 part is the fruit (the nearest such window on ties). The centroid of the points in
 it is returned: a point on the visible skin, as in the reference work. (Taking the
 nearest surface instead put 16 % of the points on a leaf in front of the fruit.)
+
+That centroid lies in front of the fruit's centre: pixels sample the visible half of a
+roughly round fruit evenly in projection, so their mean depth is two thirds of a radius
+short of the centre. `fruit_point` moves it that far along the viewing ray, with the
+radius read off the box width at the fruit's depth (a box narrowed by a leaf gives a
+smaller radius, so the move errs short rather than through the fruit; no radius is
+taken above a pepper's).
 """
 
 from __future__ import annotations
@@ -16,10 +23,13 @@ FRUIT_DEPTH = 0.06  # m of depth a pepper's visible skin spans
 CENTRAL = 0.6  # fraction of the box's width and height taken as its centre
 MIN_POINTS = 5
 BIN = 0.01  # m, depth histogram resolution
+CENTRE_BEHIND_SKIN = 2 / 3  # radii: the mean depth of a sphere's visible half, area-weighted in projection
+MAX_RADIUS = 0.05  # m: sweet peppers are at most 10 cm wide; a wide box on something else moves no further
 
 
-def fruit_point(cloud: np.ndarray, box: tuple[float, float, float, float]) -> np.ndarray | None:
-    """Centroid (optical frame) of the fruit surface inside `box` = (x0, y0, x1, y1) pixels, or None."""
+def fruit_point(cloud: np.ndarray, box: tuple[float, float, float, float], fx: float) -> np.ndarray | None:
+    """The fruit's centre (optical frame) estimated from its surface inside `box` = (x0, y0, x1, y1) pixels, or None;
+    fx is the focal length in pixels."""
     height, width, _ = cloud.shape
     x0, y0, x1, y1 = box
     cx, cy, hw, hh = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) * CENTRAL / 2, (y1 - y0) * CENTRAL / 2
@@ -38,4 +48,6 @@ def fruit_point(cloud: np.ndarray, box: tuple[float, float, float, float]) -> np
     keep = (depth >= start) & (depth < start + FRUIT_DEPTH)
     if keep.sum() < MIN_POINTS:
         return None
-    return points[keep].mean(axis=0)
+    skin = points[keep].mean(axis=0)
+    radius = min(0.5 * (x1 - x0) * skin[2] / fx, MAX_RADIUS)
+    return skin + CENTRE_BEHIND_SKIN * radius * skin / np.linalg.norm(skin)

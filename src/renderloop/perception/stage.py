@@ -75,7 +75,7 @@ def detect_frame(detector: Detector, run_dir: Path, index: int, timestamp: float
     cloud = organised_cloud(depth, intrinsics)
     detections = []
     for detection in detector.detect(rgb, threshold):
-        point = fruit_point(cloud, detection.bbox)
+        point = fruit_point(cloud, detection.bbox, intrinsics.fx)
         world = None if point is None else [round(float(v), 5) for v in to_world(point, pose)]
         detections.append({**detection.to_json(), "position": world})
     return {"index": index, "timestamp": round(float(timestamp), 6), "image": f"rgb/{frame_name(index)}", "detections": detections}
