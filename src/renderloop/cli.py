@@ -13,10 +13,10 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from typer.exceptions import Abort as TyperAbort
-from typer.exceptions import TyperException
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+from typer.exceptions import Abort as TyperAbort
+from typer.exceptions import TyperException
 
 from renderloop import __version__
 from renderloop.config import PRESETS, load_config

@@ -72,7 +72,12 @@ def atomic_directory(path: Path, replace: bool = False) -> Iterator[Path]:
         old = staging / f"{path.name}.old"
         if path.exists():
             os.replace(path, old)
-        os.replace(staging / path.name, path)
+        try:
+            os.replace(staging / path.name, path)
+        except OSError:
+            if old.exists():
+                os.replace(old, path)  # the earlier export stays rather than nothing
+            raise
     finally:
         shutil.rmtree(staging, ignore_errors=True)
 
