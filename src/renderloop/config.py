@@ -232,7 +232,9 @@ class DepthNoiseConfig(Strict):
 
 class RendererConfig(Strict):
     backend: Literal["cycles", "raster"] = "cycles"
-    samples: PositiveInt = 16
+    # chosen by measurement (benchmarks/quality.py, 12 paper frames, shipped detector): ripe recall 0.493 at 4, 8 and
+    # 128 samples, false detections 8.1 % at 8 and 128 but 10.5 % at 4; 8 samples cost 4.8 s a 640x480 frame, 128 cost 28
+    samples: PositiveInt = 8
     adaptive_threshold: NonNegativeFloat = 0.05
     denoise: bool = True
     denoise_quality: Literal["fast", "balanced", "high"] = Field(
