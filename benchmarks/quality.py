@@ -40,12 +40,10 @@ def main() -> None:
     _, poses = load_poses(args.run_dir)
     chosen = poses[np.linspace(0, len(poses) - 1, args.frames).round().astype(int)]
     detector = Detector()
-    ripe = {p.id: p.ripe for p in scene.peppers}
-    centres = {p.id: np.asarray(p.center) for p in scene.peppers}
     results = {}
     for samples in args.samples:
         quality = config.model_copy(update={"renderer": config.renderer.model_copy(update={"samples": samples})})
-        score, seconds = RunScore(ripe, centres), []
+        score, seconds = RunScore.of_scene(scene), []
         with CyclesRenderer(scene, quality, Intrinsics.from_config(config.camera)) as renderer:
             for pose in chosen:
                 frame = renderer.render(pose)

@@ -45,9 +45,10 @@ class RosMessages:
     def serialize(self, message) -> bytes:
         return self.store.serialize_cdr(message, message.__msgtype__)
 
-    def time(self, seconds: float):
+    def time(self, seconds: float, kind: str = "Time"):
+        """builtin_interfaces Time (a stamp) or Duration (time from start): whole seconds and nanoseconds."""
         nanoseconds = round(seconds * 1e9)
-        return self.t["builtin_interfaces/msg/Time"](sec=nanoseconds // 10**9, nanosec=nanoseconds % 10**9)
+        return self.t[f"builtin_interfaces/msg/{kind}"](sec=nanoseconds // 10**9, nanosec=nanoseconds % 10**9)
 
     def header(self, seconds: float, frame_id: str):
         return self.t["std_msgs/msg/Header"](stamp=self.time(seconds), frame_id=frame_id)
@@ -111,10 +112,9 @@ class RosMessages:
                 covariance=covariance))
 
     def trajectory_point(self, seconds: float, positions: np.ndarray, velocities: np.ndarray, accelerations: np.ndarray):
-        nanoseconds = round(seconds * 1e9)
         return self.t["trajectory_msgs/msg/JointTrajectoryPoint"](
             positions=positions, velocities=velocities, accelerations=accelerations, effort=np.zeros(0),
-            time_from_start=self.t["builtin_interfaces/msg/Duration"](sec=nanoseconds // 10**9, nanosec=nanoseconds % 10**9))
+            time_from_start=self.time(seconds, "Duration"))
 
     def detections(self, seconds: float, frame_id: str, found: list[dict], world_to_camera: np.ndarray):
         """Detection2DArray; each hypothesis' pose is the fruit point in the camera frame (zero when it had none)."""
@@ -138,7 +138,7 @@ class RosMessages:
             header=self.header(seconds, "world"), ns=namespace, id=number, type=getattr(marker, kind), action=marker.ADD,
             pose=self.pose(_translation(position)), scale=self.t["geometry_msgs/msg/Vector3"](scale, scale, scale),
             color=self.t["std_msgs/msg/ColorRGBA"](*map(float, rgba)),
-            lifetime=self.t["builtin_interfaces/msg/Duration"](sec=0, nanosec=0), frame_locked=False, points=[], colors=[],
+            lifetime=self.time(0.0, "Duration"), frame_locked=False, points=[], colors=[],
             texture_resource="", texture=self.t["sensor_msgs/msg/CompressedImage"](header=self.header(seconds, ""), format="", data=np.zeros(0, np.uint8)),
             uv_coordinates=[], text=text, mesh_resource="",
             mesh_file=self.t["visualization_msgs/msg/MeshFile"](filename="", data=np.zeros(0, np.uint8)), mesh_use_embedded_materials=False)

@@ -21,7 +21,7 @@ from renderloop.planning.stage import read_waypoints
 from renderloop.planning.trajectory import HEADER as TRAJECTORY_HEADER
 from renderloop.planning.waypoints import Waypoint
 from renderloop.render.camera import Intrinsics, read_camera_info
-from renderloop.render.frames import frame_name
+from renderloop.render.frames import frame_name, sensor_depth_dir
 from renderloop.render.stage import load_poses
 from renderloop.scene.model import Scene, load_scene
 from renderloop.sim.stage import FLIGHT_HEADER
@@ -66,7 +66,7 @@ def _frames(run_dir: Path, missing: list[str]) -> list[Frame]:
     if _optional(run_dir, "groundtruth.txt", missing) is None:
         return []
     times, poses = load_poses(run_dir)
-    depth_dir = "depth_sensor" if (run_dir / "depth_sensor").is_dir() else "depth"
+    depth_dir = sensor_depth_dir(run_dir)
     frames = []
     for index, (timestamp, pose) in enumerate(zip(times, poses)):
         paths = [run_dir / folder / frame_name(index) for folder in ("rgb", depth_dir, "masks")]

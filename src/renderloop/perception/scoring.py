@@ -53,6 +53,10 @@ class RunScore:
         self.findable_ripe = self.found_ripe = self.detections = self.false = self.label_right = self.labelled = 0
         self.errors: list[float] = []
 
+    @classmethod
+    def of_scene(cls, scene) -> RunScore:
+        return cls({p.id: p.ripe for p in scene.peppers}, {p.id: np.asarray(p.center) for p in scene.peppers})
+
     def add(self, detections: list[dict], mask: np.ndarray) -> None:
         truth = mask_boxes(mask)
         matched = match(detections, truth)

@@ -33,7 +33,12 @@ from renderloop.perception.pointcloud import organised_cloud, to_world
 from renderloop.perception.scoring import RunScore
 from renderloop.perception.sheet import draw_detection_sheet
 from renderloop.render.camera import read_camera_info
-from renderloop.render.frames import decode_depth, frame_name, read_png
+from renderloop.render.frames import (
+    decode_depth,
+    frame_name,
+    read_png,
+    sensor_depth_dir,
+)
 from renderloop.render.stage import load_poses
 from renderloop.scene.model import load_scene
 
@@ -91,7 +96,7 @@ def run_detect(run_dir: Path, config: Config, force: bool = False, model: Path |
     threshold = config.detector.score_threshold
     times, poses = load_poses(run_dir)
     intrinsics = read_camera_info(run_dir / "camera_info.yaml")
-    depth_dir = "depth_sensor" if (run_dir / "depth_sensor").is_dir() else "depth"
+    depth_dir = sensor_depth_dir(run_dir)
     cache = run_dir / CACHE
     key = f"{detector.path}@{threshold}@{depth_dir}"
     frames = [] if force else _read_cache(cache, key)
@@ -117,7 +122,7 @@ def run_detect(run_dir: Path, config: Config, force: bool = False, model: Path |
 
 def score_run(run_dir: Path, frames: list[dict]) -> dict:
     scene = load_scene(run_dir / "scene.json")
-    score = RunScore({p.id: p.ripe for p in scene.peppers}, {p.id: np.asarray(p.center) for p in scene.peppers})
+    score = RunScore.of_scene(scene)
     for frame in frames:
         score.add(frame["detections"], read_png(run_dir / "masks" / frame_name(frame["index"]), np.uint16))
     return score.summary()

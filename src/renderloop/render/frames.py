@@ -31,6 +31,11 @@ def frame_paths(run_dir: Path, index: int, sensor: bool) -> dict[str, Path]:
     return {name: run_dir / name / frame_name(index) for name in names}
 
 
+def sensor_depth_dir(run_dir: Path) -> str:
+    """The depth a real camera would give: the sensor stream when the run rendered one, else the ideal depth."""
+    return "depth_sensor" if (Path(run_dir) / "depth_sensor").is_dir() else "depth"
+
+
 def frame_done(run_dir: Path, index: int, sensor: bool) -> bool:
     return all(path.is_file() for path in frame_paths(run_dir, index, sensor).values())
 
