@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -48,6 +49,21 @@ def test_views_keep_clear_of_plants_and_tables_and_aim_at_a_plant():
         assert axis[2] < np.sin(np.radians(21))  # never looks up more than 20 degrees (plus roll)
         assert any(_ray_hits_box(position, axis, np.asarray(p.bounds.min) - 0.02, np.asarray(p.bounds.max) + 0.02)
                    for p in scene.plants)
+
+
+@pytest.mark.parametrize("distance_range", [(0.3, 1.2), (0.3, 0.65)])
+def test_views_keep_to_their_distance_from_the_plant_axis(distance_range):
+    _, scene = dataset_scene(DatasetSpec(seed=9), 2)
+    rng = np.random.default_rng(3)
+    axes = np.array([plant.position[:2] for plant in scene.plants])
+    near, far = distance_range[0] - 1e-9, distance_range[1] + 1e-9
+    seen = []  # the viewed plant is one whose axis is within the range (a neighbour may be nearer)
+    for _ in range(200):
+        distances = np.linalg.norm(axes - random_view(scene, rng, distance_range)[:2, 3], axis=1)
+        in_range = distances[(distances >= near) & (distances <= far)]
+        assert in_range.size
+        seen.append(in_range.min())
+    assert np.median(seen) < np.mean(distance_range)  # drawn nearer more often, as scans are
 
 
 def test_boxes_cover_the_mask_and_unhidden_fruit_are_fully_visible():
@@ -110,5 +126,11 @@ def test_a_dataset_of_other_settings_is_not_mixed(tmp_path: Path):
     other = DatasetSpec(seed=4, width=64, height=48, views_per_scene=2, samples=(1,), val_every=2)
     with pytest.raises(UserError, match="other settings"):
         build_dataset(tmp_path, 1, other)
+    with pytest.raises(UserError, match="other settings"):
+        build_dataset(tmp_path, 1, dataclasses.replace(TINY, distance=(0.3, 0.65)))
+    manifest = tmp_path / "dataset.json"
+    older = {k: v for k, v in json.loads(manifest.read_text()).items() if k != "distance"}
+    manifest.write_text(json.dumps(older))  # a dataset made before views had a range: the default one
+    build_dataset(tmp_path, 1, TINY)
     with pytest.raises(UserError, match="--images 0"):
         build_dataset(tmp_path, 0, TINY)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -142,6 +143,20 @@ def test_fine_tuning_starts_from_the_weights_of_a_checkpoint(tiny_dataset: Path,
     junk.write_bytes(b"not a checkpoint")
     with pytest.raises(UserError, match="junk.ckpt: not a renderloop training checkpoint"):
         train_detector(tiny_dataset, tmp_path / "other.onnx", settings, device="cpu", workers=0, log=lambda _: None, init=junk)
+
+
+def test_several_datasets_train_together_and_are_scored_apart(tiny_dataset: Path, tmp_path: Path):
+    second = tmp_path / "second"
+    shutil.copytree(tiny_dataset, second)
+    coco = json.loads((second / "annotations" / "instances_val.json").read_text())
+    coco["images"], coco["annotations"] = coco["images"][:1], [a for a in coco["annotations"] if a["image_id"] == coco["images"][0]["id"]]
+    write_json(second / "annotations" / "instances_val.json", coco)
+    settings = TrainSettings(epochs=1, batch_size=4, warmup_steps=1, max_steps=1)
+    record = train_detector([tiny_dataset, second], tmp_path / "both.onnx", settings, device="cpu", workers=0, log=lambda _: None)
+    assert record["train_images"] == 16 and record["val_images"] == [3, 1]
+    scores = record["history"][-1]["val"]
+    assert set(scores) == {str(tiny_dataset), str(second)}
+    assert {k: record["history"][-1][k] for k in scores[str(tiny_dataset)]} == scores[str(tiny_dataset)]
 
 
 def test_files_that_are_not_detectors_are_refused(tmp_path: Path):

@@ -126,13 +126,16 @@ def dataset(
     seed: Annotated[int, typer.Option(min=0, help="Seed of the scenes and views.")] = 0,
     views_per_scene: Annotated[int, typer.Option(min=1, max=1000, help="Views rendered from each random scene.")] = DatasetSpec.views_per_scene,
     width: Annotated[int, typer.Option(min=16, max=4096, help="Image width, px (height: 3/4 of it).")] = DatasetSpec.width,
+    distance: Annotated[tuple[float, float], typer.Option(help="Near and far camera distance from the plant axis, m.")] = DatasetSpec.distance,
     workers: Workers = 1,
     executor: Executor = "local",
     address: Address = None,
     force: Force = False,
 ) -> None:
     """Render a COCO detection dataset (ripe, unripe) of random greenhouse views with Cycles, boxes from the masks."""
-    spec = DatasetSpec(seed=seed, width=width, height=width * 3 // 4, views_per_scene=views_per_scene)
+    if not 0.0 < distance[0] <= distance[1]:
+        raise UserError(f"--distance {distance[0]} {distance[1]}: need 0 < near <= far")
+    spec = DatasetSpec(seed=seed, width=width, height=width * 3 // 4, views_per_scene=views_per_scene, distance=distance)
     with _progress_bar("dataset") as progress:
         made = build_dataset(out, images, spec, workers, executor, address, force, progress)
     typer.echo(f"dataset: rendered {made} images, {images} in {out}")
@@ -140,7 +143,8 @@ def dataset(
 
 @app.command()
 def train(
-    dataset_dir: Annotated[Path, typer.Argument(help="Dataset folder made by `renderloop dataset`.", show_default=False)],
+    dataset_dirs: Annotated[list[Path], typer.Argument(help="Dataset folders made by `renderloop dataset`; several train together.",
+                                                       show_default=False)],
     out: Annotated[Path, typer.Option(help="ONNX model to write; its checkpoint is OUT with .ckpt.")],
     epochs: Annotated[int, typer.Option(min=1, max=100_000)] = 30,
     batch_size: Annotated[int, typer.Option(min=1, max=4096)] = 32,
@@ -158,7 +162,7 @@ def train(
     if device not in ("auto", "cpu", "cuda"):
         raise UserError(f"--device {device}: choose from auto, cpu, cuda")
     settings = TrainSettings(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate, seed=seed)
-    record = train_detector(dataset_dir, out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True), init=init)
+    record = train_detector(dataset_dirs, out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True), init=init)
     last = record["history"][-1] if record["history"] else {}
     typer.echo(f"train: wrote {out} (val mAP@0.5 {last.get('map50', float('nan')):.3f})")
 

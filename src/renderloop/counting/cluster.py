@@ -27,6 +27,7 @@ apart).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -124,7 +125,9 @@ def cluster_row(detections: np.ndarray, params: ClusterParams, rng: np.random.Ge
     min_samples = min_samples_for(n_init, params.points, params.min_views)
     optics = OPTICS(min_samples=min_samples, max_eps=params.eps, cluster_method=params.method,
                     eps=params.eps if params.method == "dbscan" else None, xi=params.xi)
-    labels = optics.fit(points).labels_.astype(int)
+    with warnings.catch_warnings():  # detections too sparse to cluster are no fruit: the answer, not a problem
+        warnings.filterwarnings("ignore", message="All reachability values are inf", category=UserWarning)
+        labels = optics.fit(points).labels_.astype(int)
     return RowClusters(points, original, labels, _centers(points, original, labels), n_init, min_samples)
 
 

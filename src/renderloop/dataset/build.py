@@ -59,7 +59,7 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
         config = config.model_copy(update={"renderer": config.renderer.model_copy(update={"threads": threads})})
     intrinsics = Intrinsics.from_config(config.camera)
     rng = np.random.default_rng(np.random.SeedSequence([spec.seed, VIEW_STREAM, scene_index]))
-    poses = [random_view(scene, rng) for _ in range(spec.views_per_scene)]  # all drawn, so a view never depends on which are done
+    poses = [random_view(scene, rng, spec.distance) for _ in range(spec.views_per_scene)]  # all drawn, so a view never depends on which are done
     peppers = {pepper.id: pepper for pepper in scene.peppers}
     meshes = {}
     for plant in scene.plants:
@@ -85,8 +85,8 @@ def _check_spec(out: Path, spec: DatasetSpec, force: bool) -> None:
     path = out / MANIFEST
     if path.is_file() and not force:
         try:
-            recorded = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+            recorded = {**spec.manifest_defaults(), **json.loads(path.read_text(encoding="utf-8"))}
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError, TypeError):
             recorded = None
         if recorded != spec.manifest():
             raise UserError(f"{out}: holds a dataset of other settings (see {MANIFEST}); use --force to replace it")

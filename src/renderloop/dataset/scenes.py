@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from renderloop.config import Config, deep_merge, preset_overrides, validate
+from renderloop.dataset.views import DISTANCE
 from renderloop.errors import UserError
 from renderloop.scene.generate import generate_scene
 from renderloop.scene.model import Scene
@@ -33,6 +34,12 @@ class DatasetSpec:
     views_per_scene: int = 16
     samples: tuple[int, ...] = (2, 4, 8)  # path-tracing noise levels around the run's default, after denoising
     val_every: int = 10  # every tenth scene is held out for validation
+    distance: tuple[float, float] = DISTANCE  # camera to plant axis, m: a close set adds the large fruit of a scan
+
+    @classmethod
+    def manifest_defaults(cls) -> dict:
+        """Fields that a manifest of an older version may lack, with the value its images were made with."""
+        return {"distance": list(DISTANCE)}
 
     def manifest(self) -> dict:
         return {"format_version": 1, **{key: list(v) if isinstance(v, tuple) else v for key, v in asdict(self).items()}}

@@ -43,8 +43,8 @@ def _blocked(scene: Scene, position: np.ndarray) -> bool:
     return False
 
 
-def random_view(scene: Scene, rng: np.random.Generator) -> np.ndarray:
-    """T_world_optical of one random view of a random plant."""
+def random_view(scene: Scene, rng: np.random.Generator, distance_range: tuple[float, float] = DISTANCE) -> np.ndarray:
+    """T_world_optical of one random view of a random plant, `distance_range` m (horizontal) from its axis."""
     for _ in range(MAX_TRIES):
         plant = scene.plants[int(rng.integers(len(scene.plants)))]
         low, high = np.asarray(plant.bounds.min), np.asarray(plant.bounds.max)
@@ -52,7 +52,7 @@ def random_view(scene: Scene, rng: np.random.Generator) -> np.ndarray:
         center, size = (canopy_low + high) / 2, high - canopy_low
         side = 0.0 if rng.random() < 0.5 else math.pi  # rows run along y: look from +x or -x
         bearing = side + rng.uniform(-BEARING, BEARING)
-        distance = DISTANCE[0] + (DISTANCE[1] - DISTANCE[0]) * rng.random() ** 2
+        distance = distance_range[0] + (distance_range[1] - distance_range[0]) * rng.random() ** 2
         camera = np.array([plant.position[0] + distance * math.cos(bearing), plant.position[1] + distance * math.sin(bearing),
                            center[2] + rng.uniform(*HEIGHT)])
         if _blocked(scene, camera):

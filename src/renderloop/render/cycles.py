@@ -219,9 +219,9 @@ class CyclesRenderer:
             c.denoising_input_passes = "RGB_ALBEDO_NORMAL"
             c.denoising_prefilter = "ACCURATE" if r.denoise_quality == "high" else "FAST"
             c.denoising_quality = r.denoise_quality.upper()
-        # Short paths: a lit canopy needs few bounces, and clamping keeps fireflies out of 16 spp.
-        c.max_bounces, c.diffuse_bounces, c.glossy_bounces = 6, 3, 3
-        c.transmission_bounces, c.transparent_max_bounces, c.volume_bounces = 4, 4, 0
+        b = r.bounces  # clamping keeps fireflies out of few samples
+        c.max_bounces, c.diffuse_bounces, c.glossy_bounces = b.total, b.diffuse, b.glossy
+        c.transmission_bounces, c.transparent_max_bounces, c.volume_bounces = b.transmission, b.transparent, 0
         c.caustics_reflective = c.caustics_refractive = False
         c.sample_clamp_indirect = 10.0
         s.render.use_persistent_data = r.persistent_data

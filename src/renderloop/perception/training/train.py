@@ -75,17 +75,22 @@ def _initial_weights(path: Path) -> dict:
         raise UserError(f"--init {path}: not a renderloop training checkpoint ({type(error).__name__})") from None
 
 
-def train_detector(dataset: Path, out: Path, settings: TrainSettings, device: str = "auto", workers: int = 1,
+def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettings, device: str = "auto", workers: int = 1,
                    log: Log = print, init: Path | None = None) -> dict:
-    dataset, out = Path(dataset), Path(out)
+    """Train on the train splits of one or more datasets together; each one's val split is scored apart
+    (a close-range set is no easier or harder than the set it adds to), the first's as the headline figures."""
+    datasets, out = [Path(d) for d in (datasets if isinstance(datasets, list) else [datasets])], Path(out)
     if out.suffix != ".onnx":
         raise UserError(f"--out {out}: the model file must end in .onnx")
     out.parent.mkdir(parents=True, exist_ok=True)
     checkpoint_path = out.with_suffix(".ckpt")
     torch.manual_seed(settings.seed)
-    train_set, val_set = PepperBoxes(dataset, "train", augment=True), PepperBoxes(dataset, "val", augment=False)
-    if len(train_set) == 0:
-        raise UserError(f"{train_set.annotation_file}: no training images")
+    parts = [PepperBoxes(dataset, "train", augment=True) for dataset in datasets]
+    val_sets = [PepperBoxes(dataset, "val", augment=False) for dataset in datasets]
+    for part in parts:
+        if len(part) == 0:
+            raise UserError(f"{part.annotation_file}: no training images")
+    train_set = torch.utils.data.ConcatDataset(parts)
     run_device = _device(device)
     loader = torch.utils.data.DataLoader(
         train_set, batch_size=settings.batch_size, shuffle=True, drop_last=len(train_set) > settings.batch_size,
@@ -99,8 +104,8 @@ def train_detector(dataset: Path, out: Path, settings: TrainSettings, device: st
     optimizer = torch.optim.AdamW(model.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _schedule(settings, len(loader)))
     schedule = {k: v for k, v in asdict(settings).items() if k != "max_steps"}  # what a resumed run must share
-    record = {"settings": schedule, "init": str(init) if init else None, "dataset": str(dataset), "train_images": len(train_set),
-              "val_images": len(val_set), "classes": list(CLASSES), "history": []}
+    record = {"settings": schedule, "init": str(init) if init else None, "datasets": [str(d) for d in datasets],
+              "train_images": len(train_set), "val_images": [len(v) for v in val_sets], "classes": list(CLASSES), "history": []}
     start_epoch = 0
     if checkpoint_path.is_file():
         state = torch.load(checkpoint_path, map_location=run_device, weights_only=True)  # tensors and plain data: nothing runs
@@ -134,8 +139,10 @@ def train_detector(dataset: Path, out: Path, settings: TrainSettings, device: st
             if settings.max_steps is not None and steps >= settings.max_steps:
                 break
         seconds = time.perf_counter() - began
-        scores = coco_map(model, val_set, run_device) if len(val_set) else {}
-        entry = {"epoch": epoch + 1, "loss": float(np.mean(losses)), "images_per_s": seen / seconds, **scores}
+        scores = [coco_map(model, val_set, run_device) if len(val_set) else {} for val_set in val_sets]
+        entry = {"epoch": epoch + 1, "loss": float(np.mean(losses)), "images_per_s": seen / seconds, **scores[0]}
+        if len(datasets) > 1:
+            entry["val"] = {str(dataset): figures for dataset, figures in zip(datasets, scores)}
         record["history"].append(entry)
         log(json.dumps(entry))
         _save_checkpoint(checkpoint_path, {

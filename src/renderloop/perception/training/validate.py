@@ -27,13 +27,14 @@ def predictions(model: torch.nn.Module, dataset: PepperBoxes, device: torch.devi
     return results
 
 
-def _class_ap(precision: np.ndarray, iou_index: slice | int, class_index: int) -> float:
+def _class_ap(precision: np.ndarray, iou_index: slice | int, class_index: int) -> float | None:
+    """None for a class the split has no fruit of (NaN would not survive the JSON record)."""
     values = precision[iou_index, :, class_index, 0, -1]  # all areas, 100 detections
     values = values[values > -1]
-    return float(values.mean()) if values.size else float("nan")
+    return float(values.mean()) if values.size else None
 
 
-def coco_map(model: torch.nn.Module, dataset: PepperBoxes, device: torch.device) -> dict[str, float]:
+def coco_map(model: torch.nn.Module, dataset: PepperBoxes, device: torch.device) -> dict[str, float | None]:
     """mAP@0.5 and @0.5:0.95 over both classes, and AP@0.5 of each class."""
     results = predictions(model, dataset, device)
     with contextlib.redirect_stdout(io.StringIO()):  # pycocotools prints its progress
