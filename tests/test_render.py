@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
@@ -9,7 +10,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import fly_demo_raster
 
+from renderloop.config import load_config
 from renderloop.errors import UserError
 from renderloop.io.rundir import read_config
 from renderloop.render.camera import Intrinsics, read_camera_info, to_gl_camera
@@ -17,9 +20,6 @@ from renderloop.render.frames import read_frame
 from renderloop.render.raster import RasterRenderer
 from renderloop.render.stage import load_poses, run_render
 from renderloop.robot.kinematics import camera_rotation, homogeneous, look_at
-from renderloop.config import load_config
-
-from conftest import fly_demo_raster
 
 
 def wall_depth(intrinsics: Intrinsics, pose: np.ndarray, wall_x: float) -> np.ndarray:
@@ -110,6 +110,10 @@ def test_render_writes_the_run_files(flown: Path):
     assert frame.rgb.shape == (config.camera.height, config.camera.width, 3)
     assert frame.depth.dtype == np.float32 and frame.mask.dtype == np.uint16
     assert not run_render(flown, config)  # complete: skipped
+    record = json.loads((flown / "render.json").read_text())
+    del record["renderer"]["bounces"]
+    (flown / "render.json").write_text(json.dumps(record))
+    assert not run_render(flown, config)  # a record from before bounces were in the config: the same frames
 
 
 def test_killed_render_resumes_to_the_same_files(flown: Path, tmp_path: Path):

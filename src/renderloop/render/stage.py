@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from renderloop.config import Config
+from renderloop.config import BouncesConfig, Config
 from renderloop.errors import UserError
 from renderloop.io import rundir
 from renderloop.io.atomic import write_json, write_text
@@ -61,9 +61,13 @@ def _manifest(run_dir: Path, config: Config, backend: str, poses: np.ndarray) ->
 def _recorded(run_dir: Path) -> dict | None:
     path = run_dir / MANIFEST
     try:
-        return json.loads(path.read_text(encoding="utf-8")) if path.is_file() else None
+        recorded = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else None
     except (json.JSONDecodeError, UnicodeDecodeError):
         return None  # a damaged record means unknown frames: start over
+    if isinstance(recorded, dict) and isinstance(recorded.get("renderer"), dict):
+        # a record from before the bounces were configurable: its frames had today's defaults, then hard-coded
+        recorded["renderer"] = {"bounces": BouncesConfig().model_dump(mode="json"), **recorded["renderer"]}
+    return recorded
 
 
 def _start_over(run_dir: Path, manifest: dict) -> None:
