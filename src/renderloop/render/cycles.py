@@ -219,11 +219,11 @@ class CyclesRenderer:
             c.denoising_input_passes = "RGB_ALBEDO_NORMAL"
             c.denoising_prefilter = "ACCURATE" if r.denoise_quality == "high" else "FAST"
             c.denoising_quality = r.denoise_quality.upper()
-        b = r.bounces  # clamping keeps fireflies out of few samples
+        b = r.bounces
         c.max_bounces, c.diffuse_bounces, c.glossy_bounces = b.total, b.diffuse, b.glossy
         c.transmission_bounces, c.transparent_max_bounces, c.volume_bounces = b.transmission, b.transparent, 0
         c.caustics_reflective = c.caustics_refractive = False
-        c.sample_clamp_indirect = 10.0
+        c.sample_clamp_indirect = 10.0  # keeps fireflies out of few samples
         s.render.use_persistent_data = r.persistent_data
         s.render.threads_mode = "FIXED" if r.threads > 0 else "AUTO"
         if r.threads > 0:

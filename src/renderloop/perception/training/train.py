@@ -78,7 +78,7 @@ def _initial_weights(path: Path) -> dict:
 def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettings, device: str = "auto", workers: int = 1,
                    log: Log = print, init: Path | None = None) -> dict:
     """Train on the train splits of one or more datasets together; each one's val split is scored apart
-    (a close-range set is no easier or harder than the set it adds to), the first's as the headline figures."""
+    (figures of sets of different difficulty would not mean anything mixed), the first's as the headline figures."""
     datasets, out = [Path(d) for d in (datasets if isinstance(datasets, list) else [datasets])], Path(out)
     if out.suffix != ".onnx":
         raise UserError(f"--out {out}: the model file must end in .onnx")
