@@ -133,8 +133,6 @@ def dataset(
     force: Force = False,
 ) -> None:
     """Render a COCO detection dataset (ripe, unripe) of random greenhouse views with Cycles, boxes from the masks."""
-    if not 0.0 < distance[0] <= distance[1]:
-        raise UserError(f"--distance {distance[0]} {distance[1]}: need 0 < near <= far")
     spec = DatasetSpec(seed=seed, width=width, height=width * 3 // 4, views_per_scene=views_per_scene, distance=distance)
     with _progress_bar("dataset") as progress:
         made = build_dataset(out, images, spec, workers, executor, address, force, progress)

@@ -36,6 +36,10 @@ class DatasetSpec:
     val_every: int = 10  # every tenth scene is held out for validation
     distance: tuple[float, float] = DISTANCE  # camera to plant axis, m: a close set adds the large fruit of a scan
 
+    def __post_init__(self) -> None:
+        if not 0.0 < self.distance[0] <= self.distance[1]:
+            raise UserError(f"--distance {self.distance[0]} {self.distance[1]}: need 0 < near <= far")
+
     @classmethod
     def manifest_defaults(cls) -> dict:
         """Fields that a manifest of an older version may lack, with the value its images were made with."""
