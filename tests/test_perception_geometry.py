@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderloop.perception.fruit_points import fruit_point
+from renderloop.perception.fruit_points import fruit_point, ripe_coloured
 from renderloop.perception.pointcloud import organised_cloud, to_world
 from renderloop.render.camera import Intrinsics
 from renderloop.render.raster import RasterRenderer
 from renderloop.robot.kinematics import look_at
+from renderloop.scene.plant import BASE_RGB
 
 
 def test_cloud_is_the_back_projection_with_nan_for_no_return():
@@ -77,3 +78,27 @@ def test_fruit_points_from_truth_boxes_lie_on_their_pepper(frames):
 def test_an_empty_box_has_no_fruit_point():
     cloud = np.full((10, 10, 3), np.nan, dtype=np.float32)
     assert fruit_point(cloud, (2, 2, 8, 8), 500.0) is None
+
+
+def test_ripe_colour_tells_fruit_from_the_greenhouse():
+    ripe = [BASE_RGB[name] for name in ("red", "orange", "yellow")] + [(0.2, 0.02, 0.02)]  # the last: red in shade
+    other = [BASE_RGB["green"], (0.10, 0.32, 0.06), (0.2, 0.4, 0.1),  # green fruit, leaf, stem
+             (0.45, 0.62, 0.9), (0.86, 0.88, 0.9), (0.5, 0.48, 0.44), (0.06, 0.06, 0.065)]  # sky, wall, floor, pot
+    pixels = (np.array(ripe + other)[None] * 255).round().astype(np.uint8)
+    assert ripe_coloured(pixels)[0].tolist() == [True] * len(ripe) + [False] * len(other)
+
+
+def test_a_stem_across_a_ripe_fruit_does_not_pull_its_point_off():
+    """A fruit 0.5 m away behind a stem 10 cm in front of it that fills most of the box's centre:
+    by depth alone the stem wins; the fruit's colour keeps the point on the fruit."""
+    intrinsics = Intrinsics(60, 60, 300.0, 300.0, 29.5, 29.5)
+    v, u = np.mgrid[0:60, 0:60]
+    fruit = (u - 29.5) ** 2 + (v - 29.5) ** 2 <= 20**2
+    stem = fruit & (np.abs(u - 29.5) < 9)
+    depth = np.where(fruit, 0.5, 2.0).astype(np.float32)
+    depth[stem] = 0.4
+    cloud = organised_cloud(depth, intrinsics)
+    box = (9.5, 9.5, 50.5, 50.5)
+    assert fruit_point(cloud, box, intrinsics.fx)[2] < 0.45  # the stem
+    point = fruit_point(cloud, box, intrinsics.fx, fruit & ~stem)
+    assert 0.5 < point[2] < 0.5 + 0.05  # on the fruit, moved towards its centre

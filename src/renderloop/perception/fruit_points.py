@@ -13,6 +13,12 @@ short of the centre. `fruit_point` moves it that far along the viewing ray, with
 radius read off the box width at the fruit's depth (a box narrowed by a leaf gives a
 smaller radius, so the move errs short rather than through the fruit; no radius is
 taken above a pepper's).
+
+A ripe fruit also differs from what surrounds it by colour: red, orange and yellow
+skin is redder than green and bluer than nothing else in a greenhouse. When the box
+of a ripe detection holds enough such pixels, only they are searched for the fruit's
+depth window; a stem or leaf across the fruit then cannot pull the point off it.
+Green fruit look like leaves, so their boxes use depth alone.
 """
 
 from __future__ import annotations
@@ -25,18 +31,31 @@ MIN_POINTS = 5
 BIN = 0.01  # m, depth histogram resolution
 CENTRE_BEHIND_SKIN = 2 / 3  # radii: the mean depth of a sphere's visible half, area-weighted in projection
 MAX_RADIUS = 0.05  # m: sweet peppers are at most 10 cm wide; a wide box on something else moves no further
+RIPE_CHROMA = 20  # 8-bit red minus blue: most of a red fruit's pixels (median 89 % in the demo run), 0.1 % of the rest
 
 
-def fruit_point(cloud: np.ndarray, box: tuple[float, float, float, float], fx: float) -> np.ndarray | None:
+def ripe_coloured(rgb: np.ndarray) -> np.ndarray:
+    """Pixels (..., 3 uint8) of a ripe pepper's colour: red at least green, and well above blue."""
+    r, g, b = (rgb[..., i].astype(np.int16) for i in range(3))
+    return (r >= g) & (r - b >= RIPE_CHROMA)
+
+
+def fruit_point(cloud: np.ndarray, box: tuple[float, float, float, float], fx: float,
+                fruit_pixels: np.ndarray | None = None) -> np.ndarray | None:
     """The fruit's centre (optical frame) estimated from its surface inside `box` = (x0, y0, x1, y1) pixels, or None;
-    fx is the focal length in pixels."""
+    fx is the focal length in pixels; fruit_pixels (H x W bool), when given, marks the pixels of the fruit's colour."""
     height, width, _ = cloud.shape
     x0, y0, x1, y1 = box
     cx, cy, hw, hh = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) * CENTRAL / 2, (y1 - y0) * CENTRAL / 2
     cols = slice(max(0, int(np.floor(cx - hw))), min(width, int(np.ceil(cx + hw)) + 1))
     rows = slice(max(0, int(np.floor(cy - hh))), min(height, int(np.ceil(cy + hh)) + 1))
     points = cloud[rows, cols].reshape(-1, 3)
-    points = points[np.isfinite(points[:, 2])]
+    finite = np.isfinite(points[:, 2])
+    if fruit_pixels is not None:
+        coloured = finite & fruit_pixels[rows, cols].reshape(-1)
+        if coloured.sum() >= MIN_POINTS:
+            finite = coloured
+    points = points[finite]
     if len(points) < MIN_POINTS:
         return None
     depth = points[:, 2]

@@ -28,7 +28,7 @@ from renderloop.errors import UserError
 from renderloop.io import rundir
 from renderloop.io.atomic import write_json
 from renderloop.perception.detector import Detector
-from renderloop.perception.fruit_points import fruit_point
+from renderloop.perception.fruit_points import fruit_point, ripe_coloured
 from renderloop.perception.pointcloud import organised_cloud, to_world
 from renderloop.perception.scoring import RunScore
 from renderloop.perception.sheet import draw_detection_sheet
@@ -77,10 +77,10 @@ def detect_frame(detector: Detector, run_dir: Path, index: int, timestamp: float
         raise UserError(f"{depth_path}: depth is {depth.shape[1]}x{depth.shape[0]} but the RGB frame is {rgb.shape[1]}x{rgb.shape[0]}")
     if depth.shape != (intrinsics.height, intrinsics.width):
         raise UserError(f"{depth_path}: {depth.shape[1]}x{depth.shape[0]} does not match camera_info.yaml")
-    cloud = organised_cloud(depth, intrinsics)
+    cloud, ripe_pixels = organised_cloud(depth, intrinsics), ripe_coloured(rgb)
     detections = []
     for detection in detector.detect(rgb, threshold):
-        point = fruit_point(cloud, detection.bbox, intrinsics.fx)
+        point = fruit_point(cloud, detection.bbox, intrinsics.fx, ripe_pixels if detection.label == "ripe" else None)
         world = None if point is None else [round(float(v), 5) for v in to_world(point, pose)]
         detections.append({**detection.to_json(), "position": world})
     return {"index": index, "timestamp": round(float(timestamp), 6), "image": f"rgb/{frame_name(index)}", "detections": detections}
