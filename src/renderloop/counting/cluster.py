@@ -11,7 +11,7 @@ each detection gets exactly that many and the set holds n_init * ceil(500 / n_in
 points (500 up to 500 + n_init - 1) instead of exactly 500. Filling exactly 500 gives
 some detections floor(500 / n_init) places, and a fruit seen twice then falls short of
 MinPts whenever its two detections are among them: measured on paper seed 7 and the five
-seeds of the 0.2 Hz eval, that lost 5 to 14 fruit a scenario (mean error -18.3 % with
+seeds of the 0.2 Hz eval, that lost 5 to 14 fruit a scenario (mean error -18.4 % with
 exactly 500 points, -10.7 % with equal shares; `renderloop count` on the same detections).
 Every cluster is one pepper.
 

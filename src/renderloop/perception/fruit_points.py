@@ -15,10 +15,11 @@ smaller radius, so the move errs short rather than through the fruit; no radius 
 taken above a pepper's).
 
 A ripe fruit also differs from what surrounds it by colour: red, orange and yellow
-skin is redder than green and bluer than nothing else in a greenhouse. When the box
-of a ripe detection holds enough such pixels, only they are searched for the fruit's
-depth window; a stem or leaf across the fruit then cannot pull the point off it.
-Green fruit look like leaves, so their boxes use depth alone.
+skin has at least as much red as green and far more red than blue, which no leaf,
+stem, sky, wall or floor has. When the box of a ripe detection holds enough such
+pixels, only they are searched for the fruit's depth window; a stem or leaf across
+the fruit then cannot pull the point off it. Green fruit look like leaves, so their
+boxes use depth alone.
 """
 
 from __future__ import annotations
