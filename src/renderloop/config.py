@@ -245,7 +245,7 @@ class RendererConfig(Strict):
     backend: Literal["cycles", "raster"] = "cycles"
     # chosen by measurement (benchmarks/quality.py, 40 paper frames, 201 findable ripe fruit, shipped detector):
     # ripe recall 0.592 at 1 sample, 0.587 at 2, 0.577 at 4 and 8, 0.582 at 128; false detections 11.2 % at 1,
-    # 11.4 % at 128. Denoised, one sample is all the detector needs: 1.06 s a 640x480 frame against 23 s at 128.
+    # 11.4 % at 128. Denoised, one sample is all the detector needs: 0.94 s a 640x480 frame against 29 s at 128.
     samples: PositiveInt = 1
     adaptive_threshold: NonNegativeFloat = 0.05
     denoise: bool = True
