@@ -4,7 +4,8 @@ The reference work (DESIGN §4, paper "Ripe fruit count") turns the multi-view 3
 of one row into a fixed set of `points` (500): a random subsample when there are more,
 gaussian copies of the detections when there are fewer. OPTICS then runs with
 eps = 4 cm (a pepper's size) and MinPts = 2 * ceil(500 / n_init): "a pepper is seen at
-least twice", scaled by how many copies augmentation made of each detection.
+least twice", scaled by how many copies augmentation made of each detection. Every
+cluster is one pepper.
 
 That scaling holds exactly only if every detection owns ceil(500 / n_init) points, so
 each detection gets exactly that many and the set holds n_init * ceil(500 / n_init)
@@ -13,7 +14,6 @@ some detections floor(500 / n_init) places, and a fruit seen twice then falls sh
 MinPts whenever its two detections are among them: measured on paper seed 7 and the five
 seeds of the 0.2 Hz eval, that lost 5 to 14 fruit a scenario (mean error -18.4 % with
 exactly 500 points, -10.7 % with equal shares; `renderloop count` on the same detections).
-Every cluster is one pepper.
 
 Which OPTICS extraction. scikit-learn offers two: `dbscan` cuts the reachability plot
 at `eps`, so a cluster is a set of points chained by core points at most 4 cm apart,

@@ -51,12 +51,12 @@ def fruit_point(cloud: np.ndarray, box: tuple[float, float, float, float], fx: f
     cols = slice(max(0, int(np.floor(cx - hw))), min(width, int(np.ceil(cx + hw)) + 1))
     rows = slice(max(0, int(np.floor(cy - hh))), min(height, int(np.ceil(cy + hh)) + 1))
     points = cloud[rows, cols].reshape(-1, 3)
-    finite = np.isfinite(points[:, 2])
+    usable = np.isfinite(points[:, 2])
     if fruit_pixels is not None:
-        coloured = finite & fruit_pixels[rows, cols].reshape(-1)
+        coloured = usable & fruit_pixels[rows, cols].reshape(-1)
         if coloured.sum() >= MIN_POINTS:
-            finite = coloured
-    points = points[finite]
+            usable = coloured
+    points = points[usable]
     if len(points) < MIN_POINTS:
         return None
     depth = points[:, 2]
