@@ -1,0 +1,60 @@
+"""Scoring detections against instance masks: what is a hit, what is false, what is ignored."""
+
+import numpy as np
+import pytest
+
+from renderloop.perception.scoring import RunScore, share_inside
+
+RIPE_BIG, RIPE_SMALL, UNRIPE_BIG = 1, 2, 3
+
+
+def _mask() -> np.ndarray:
+    mask = np.zeros((120, 160), dtype=np.uint16)
+    mask[10:50, 10:50] = RIPE_BIG  # 40 x 40: findable
+    mask[80:92, 100:112] = RIPE_SMALL  # 12 x 12: under the 20 px rule
+    mask[60:100, 20:60] = UNRIPE_BIG
+    return mask
+
+
+def _score(*boxes: list[float], label: str = "ripe") -> dict:
+    score = RunScore({RIPE_BIG: True, RIPE_SMALL: True, UNRIPE_BIG: False}, {})
+    score.add([{"bbox": list(box), "score": 0.9 - 0.01 * i, "label": label} for i, box in enumerate(boxes)], _mask())
+    return score.summary()
+
+
+def test_a_box_on_a_findable_pepper_is_a_hit_and_a_box_on_nothing_is_false() -> None:
+    summary = _score([11, 9, 50, 49], [120, 10, 150, 40])
+    assert (summary["ripe_findable"], summary["ripe_found"]) == (1, 1)
+    assert (summary["detections_scored"], summary["false_detections"]) == (2, 1)
+
+
+def test_a_second_box_on_a_found_pepper_is_false() -> None:
+    summary = _score([10, 10, 50, 50], [12, 12, 48, 48])
+    assert summary["ripe_found"] == 1 and summary["false_detections"] == 1
+
+
+def test_a_partial_box_on_a_findable_pepper_is_false() -> None:
+    summary = _score([10, 10, 30, 30])  # inside the pepper, IoU 0.25
+    assert summary["ripe_found"] == 0 and summary["false_detections"] == 1
+
+
+def test_a_box_on_a_pepper_too_small_to_count_is_ignored_even_off_by_a_few_pixels() -> None:
+    summary = _score([103, 83, 114, 94])  # IoU 0.44 with the 12 px pepper, two thirds of the box on it
+    assert summary["detections_scored"] == 0 and summary["false_detections"] == 0
+    assert summary["ripe_findable"] == 1 and summary["ripe_found"] == 0
+
+
+def test_a_box_mostly_off_a_small_pepper_is_false() -> None:
+    summary = _score([104, 86, 124, 106])  # an eighth of it on the small pepper
+    assert summary["false_detections"] == 1
+
+
+def test_the_other_class_still_finds_the_fruit_and_is_scored_as_a_wrong_label() -> None:
+    summary = _score([10, 10, 50, 50], label="unripe")
+    assert summary["ripe_found"] == 1 and summary["false_detections"] == 0 and summary["label_accuracy"] == 0.0
+
+
+def test_share_inside_is_the_largest_covered_share_of_the_box() -> None:
+    assert share_inside([0, 0, 10, 10], []) == 0.0
+    assert share_inside([0, 0, 10, 10], [(5, 0, 20, 10), (0, 0, 10, 2)]) == pytest.approx(0.5)
+    assert share_inside([0, 0, 10, 10], [(-5, -5, 15, 15)]) == pytest.approx(1.0)
