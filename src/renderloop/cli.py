@@ -19,7 +19,7 @@ from typer.exceptions import Abort as TyperAbort
 from typer.exceptions import TyperException
 
 from renderloop import __version__
-from renderloop.config import PRESETS, load_config
+from renderloop.config import PRESETS, DetectorConfig, load_config
 from renderloop.counting.stage import read_counts, run_count
 from renderloop.dataset.build import build_dataset
 from renderloop.dataset.scenes import DatasetSpec
@@ -172,6 +172,8 @@ def detect(
     out: Annotated[Path | None, typer.Option(help="With --images: the JSON file to write.")] = None,
     model: Annotated[Path | None, typer.Option(help="ONNX model; default: the config's, else the shipped one.")] = None,
     threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help="Score threshold; default: the config's (0.5).")] = None,
+    grid: Annotated[int | None, typer.Option(min=1, max=8, help="Also search grid x grid windows of each image; 1: whole images "
+                                              "only; default: the config's (2).")] = None,
     force: Force = False,
 ) -> None:
     """Detect peppers: detections.json (boxes, scores, ripe/unripe, 3D world points) of a run, or of a photo folder."""
@@ -181,14 +183,16 @@ def detect(
         if out is None:
             raise UserError("--images needs --out FILE.json")
         with _progress_bar("detect") as progress:
-            count = detect_photos(images, out, model, 0.5 if threshold is None else threshold, progress)
+            defaults = DetectorConfig()
+            count = detect_photos(images, out, model, defaults.score_threshold if threshold is None else threshold,
+                                  defaults.grid if grid is None else grid, progress)
         typer.echo(f"detect: {count} photos -> {out}")
         return
     config = read_config(run_dir)
-    if threshold is not None:
-        config = config.model_copy(update={"detector": config.detector.model_copy(update={"score_threshold": threshold})})
+    overrides = {k: v for k, v in {"score_threshold": threshold, "grid": grid}.items() if v is not None}
+    config = config.model_copy(update={"detector": config.detector.model_copy(update=overrides)})
     with _progress_bar("detect") as progress:
-        made = run_detect(run_dir, config, force or threshold is not None, model, progress)
+        made = run_detect(run_dir, config, force or bool(overrides), model, progress)
     typer.echo(f"detect: {'wrote' if made else 'already complete in'} {run_dir}")
 
 

@@ -262,6 +262,9 @@ class DetectorConfig(Strict):
     model: Path | None = Field(None, description="ONNX model; null means the one shipped in the package.")
     input_size: PositiveInt = 320
     score_threshold: float = Field(0.5, ge=0, le=1)
+    grid: PositiveInt = Field(
+        2, le=8, description="Also search grid x grid overlapping windows of each frame, where small fruit look larger "
+        "(1 + grid^2 network passes a frame; perception/tiling.py); 1: the whole frame only.")
 
 
 class CountingConfig(Strict):

@@ -5,6 +5,8 @@ scores above a floor, the top 300 candidates, class-wise NMS at IoU 0.55, at mos
 300 detections; then the caller's score threshold. Frames of any size are resized
 to the network input with PIL's antialiased bilinear filter (a 640x480 frame then
 looks like the 320 px renders the network was trained on) and boxes are scaled back.
+With `grid` > 1 the frame's overlapping windows are searched as well (`tiling`) and
+everything found is merged by class-wise NMS.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import numpy as np
 from PIL import Image
 
 from renderloop.errors import UserError
+from renderloop.perception.tiling import cut_by_window, windows
 
 CLASSES = ("ripe", "unripe")
 INPUT_SIZE = 320
@@ -24,6 +27,7 @@ NMS_IOU = 0.55
 TOPK_CANDIDATES = 300
 MAX_DETECTIONS = 300
 SCORE_FLOOR = 0.01  # torchvision's score_thresh: candidates below it never reach NMS
+MERGE_IOU = 0.4  # NMS across the whole frame's and the windows' boxes: one fruit boxed by two passes differs more
 SHIPPED_MODEL = "pepper_ssdlite.onnx"
 
 
@@ -63,6 +67,13 @@ def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> np.ndarr
     return order[keep]
 
 
+def classwise_nms(boxes: np.ndarray, scores: np.ndarray, labels: np.ndarray, iou_threshold: float) -> np.ndarray:
+    """NMS within each class in one pass: boxes of different classes are moved apart so they never
+    overlap (torchvision's trick)."""
+    offsets = (labels[:, None] * (boxes.max() + 1.0)).astype(boxes.dtype)
+    return nms(boxes + offsets, scores, iou_threshold)
+
+
 def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, score_threshold: float) -> list[Detection]:
     """Network outputs (boxes in input pixels, (A, 4); class probabilities, (A, 1 + classes)) to detections
     in pixels of a `width` x `height` frame. NMS runs in float32 in the input's pixels, as torchvision's does,
@@ -82,9 +93,7 @@ def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, 
     if len(index) == 0:
         return []
     cand_boxes, cand_scores = boxes[index], scores[index, labels]
-    # class-wise NMS in one pass: boxes of different classes are moved apart so they never overlap (torchvision's trick)
-    offsets = (labels[:, None] * (cand_boxes.max() + 1.0)).astype(np.float32)
-    keep = nms(cand_boxes + offsets, cand_scores, NMS_IOU)[:MAX_DETECTIONS]
+    keep = classwise_nms(cand_boxes, cand_scores, labels, NMS_IOU)[:MAX_DETECTIONS]
     scale = np.array([width, height, width, height], dtype=np.float64) / INPUT_SIZE
     return [Detection(tuple(float(v) for v in cand_boxes[k] * scale), float(cand_scores[k]), CLASSES[labels[k] - 1])
             for k in keep]
@@ -123,8 +132,28 @@ class Detector:
         boxes, scores = self.session.run(None, {"images": to_input(rgb)})
         return boxes, scores
 
-    def detect(self, rgb: np.ndarray, score_threshold: float) -> list[Detection]:
+    def detect(self, rgb: np.ndarray, score_threshold: float, grid: int = 1) -> list[Detection]:
+        """Detections in the whole frame and, with `grid` > 1, in its grid x grid overlapping windows, merged."""
         if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
             raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
+        height, width = rgb.shape[:2]
+        found = self._detect_once(rgb, score_threshold)
+        parts = windows(width, height, grid, INPUT_SIZE)
+        if not parts:
+            return found
+        for x0, y0, x1, y1 in parts:
+            for detection in self._detect_once(np.ascontiguousarray(rgb[y0:y1, x0:x1]), score_threshold):
+                a, b, c, d = detection.bbox
+                box = (a + x0, b + y0, c + x0, d + y0)
+                if not cut_by_window(box, (x0, y0, x1, y1), width, height):
+                    found.append(Detection(box, detection.score, detection.label))
+        if not found:
+            return []
+        boxes = np.array([d.bbox for d in found], dtype=np.float32)
+        scores = np.array([d.score for d in found], dtype=np.float32)
+        labels = np.array([CLASSES.index(d.label) + 1 for d in found])
+        return [found[k] for k in classwise_nms(boxes, scores, labels, MERGE_IOU)[:MAX_DETECTIONS]]
+
+    def _detect_once(self, rgb: np.ndarray, score_threshold: float) -> list[Detection]:
         boxes, scores = self.raw(rgb)
         return postprocess(boxes, scores, rgb.shape[1], rgb.shape[0], score_threshold)

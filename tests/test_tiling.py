@@ -1,0 +1,75 @@
+"""Searching a frame's overlapping windows as well as the whole frame, and merging what each pass finds."""
+
+import numpy as np
+import pytest
+
+from renderloop.perception.detector import Detection, Detector
+from renderloop.perception.tiling import cut_by_window, windows
+
+
+def test_a_paper_frame_gets_four_overlapping_windows_on_its_corners() -> None:
+    parts = windows(640, 480, 2, 320)
+    assert parts == [(0, 0, 352, 264), (288, 0, 640, 264), (0, 216, 352, 480), (288, 216, 640, 480)]
+    covered = np.zeros((480, 640), dtype=bool)
+    for x0, y0, x1, y1 in parts:
+        covered[y0:y1, x0:x1] = True
+    assert covered.all()
+
+
+@pytest.mark.parametrize("grid", [2, 3, 5])
+def test_windows_cover_the_frame_with_shared_strips(grid: int) -> None:
+    parts = windows(4000, 3000, grid, 320)
+    assert len(parts) == grid * grid
+    xs = sorted({(x0, x1) for x0, _, x1, _ in parts})
+    assert xs[0][0] == 0 and xs[-1][1] == 4000
+    assert all(right[0] < left[1] for left, right in zip(xs, xs[1:]))  # neighbours overlap
+
+
+def test_no_windows_for_one_cell_or_when_they_would_only_be_upscaled() -> None:
+    assert windows(640, 480, 1, 320) == []
+    assert windows(400, 300, 2, 320) == []  # a 220 px window would be blown up to the 320 px input
+
+
+def test_a_box_on_an_inner_window_edge_is_cut_and_one_on_the_frame_border_is_not() -> None:
+    right_window = (288, 0, 640, 264)
+    assert cut_by_window((289.0, 50.0, 320.0, 80.0), right_window, 640, 480)  # on x = 288, inside the frame
+    assert cut_by_window((400.0, 240.0, 430.0, 263.0), right_window, 640, 480)  # on y = 264
+    assert not cut_by_window((600.0, 0.0, 640.0, 30.0), right_window, 640, 480)  # the frame's own corner
+    assert not cut_by_window((400.0, 50.0, 430.0, 80.0), right_window, 640, 480)
+
+
+class ScriptedNetwork(Detector):
+    """A detector whose network answers by the size of the image it is given: the whole frame or a window.
+    It tests the tiling and merging around the network, not the network."""
+
+    def __init__(self, answers: dict[tuple[int, int], list[list[Detection]]]) -> None:
+        self.answers = {size: list(replies) for size, replies in answers.items()}
+
+    def _detect_once(self, rgb: np.ndarray, score_threshold: float) -> list[Detection]:
+        return [d for d in self.answers[rgb.shape[:2]].pop(0) if d.score >= score_threshold]
+
+
+def test_windows_add_small_fruit_drop_cut_boxes_and_merge_duplicates() -> None:
+    whole = [Detection((100.0, 100.0, 160.0, 170.0), 0.9, "ripe")]
+    network = ScriptedNetwork({
+        (480, 640): [whole],
+        (264, 352): [
+            [Detection((102.0, 101.0, 161.0, 168.0), 0.7, "ripe"),  # the whole frame's fruit again: merged
+             Detection((30.0, 40.0, 44.0, 56.0), 0.6, "ripe")],  # a small fruit only this window finds
+            [Detection((0.5, 10.0, 20.0, 40.0), 0.8, "ripe")],  # cut by the window's left edge (x = 288): dropped
+            [Detection((200.0, 100.0, 215.0, 118.0), 0.3, "unripe")],  # under the threshold
+            [Detection((100.0, 100.0, 120.0, 124.0), 0.55, "unripe")],
+        ],
+    })
+    found = network.detect(np.zeros((480, 640, 3), dtype=np.uint8), 0.5, grid=2)
+    assert [(d.bbox, d.score, d.label) for d in found] == [
+        ((100.0, 100.0, 160.0, 170.0), 0.9, "ripe"),
+        ((30.0, 40.0, 44.0, 56.0), 0.6, "ripe"),
+        ((388.0, 316.0, 408.0, 340.0), 0.55, "unripe"),  # shifted by the window's corner (288, 216)
+    ]
+
+
+def test_grid_one_is_the_whole_frame_alone() -> None:
+    whole = [Detection((1.0, 2.0, 30.0, 40.0), 0.9, "ripe")]
+    network = ScriptedNetwork({(480, 640): [whole]})
+    assert network.detect(np.zeros((480, 640, 3), dtype=np.uint8), 0.5, grid=1) == whole
