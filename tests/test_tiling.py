@@ -1,5 +1,7 @@
 """Searching a frame's overlapping windows as well as the whole frame, and merging what each pass finds."""
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -22,7 +24,7 @@ def test_windows_cover_the_frame_with_shared_strips(grid: int) -> None:
     assert len(parts) == grid * grid
     xs = sorted({(x0, x1) for x0, _, x1, _ in parts})
     assert xs[0][0] == 0 and xs[-1][1] == 4000
-    assert all(right[0] < left[1] for left, right in zip(xs, xs[1:]))  # neighbours overlap
+    assert all(right[0] < left[1] for left, right in itertools.pairwise(xs))  # neighbours overlap
 
 
 def test_no_windows_for_one_cell_or_when_they_would_only_be_upscaled() -> None:
