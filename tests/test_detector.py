@@ -13,7 +13,8 @@ from PIL import Image, ImageDraw
 
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_json
-from renderloop.perception.detector import Detector, nms, postprocess, to_input
+from renderloop.perception.boxes import nms
+from renderloop.perception.detector import Detector, postprocess, to_input
 from renderloop.perception.training.ssd import DecodedSSD, build_model, export_onnx
 from renderloop.perception.training.torch_support import import_torchvision
 from renderloop.perception.training.train import TrainSettings, train_detector

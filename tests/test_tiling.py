@@ -51,23 +51,25 @@ class ScriptedNetwork(Detector):
         return [d for d in self.answers[rgb.shape[:2]].pop(0) if d.score >= score_threshold]
 
 
-def test_windows_add_small_fruit_drop_cut_boxes_and_merge_duplicates() -> None:
-    whole = [Detection((100.0, 100.0, 160.0, 170.0), 0.9, "ripe")]
+def test_windows_add_small_fruit_drop_cut_boxes_and_fuse_what_two_passes_saw() -> None:
+    whole = [Detection((100.0, 100.0, 160.0, 170.0), 0.9, "ripe"), Detection((500.0, 400.0, 540.0, 440.0), 0.3, "ripe")]
     network = ScriptedNetwork({
         (480, 640): [whole],
         (264, 352): [
-            [Detection((102.0, 101.0, 161.0, 168.0), 0.7, "ripe"),  # the whole frame's fruit again: merged
+            [Detection((102.0, 101.0, 161.0, 168.0), 0.7, "ripe"),  # the whole frame's fruit again: fused
              Detection((30.0, 40.0, 44.0, 56.0), 0.6, "ripe")],  # a small fruit only this window finds
             [Detection((0.5, 10.0, 20.0, 40.0), 0.8, "ripe")],  # cut by the window's left edge (x = 288): dropped
-            [Detection((200.0, 100.0, 215.0, 118.0), 0.3, "unripe")],  # under the threshold
-            [Detection((100.0, 100.0, 120.0, 124.0), 0.55, "unripe")],
+            [Detection((200.0, 100.0, 215.0, 118.0), 0.3, "unripe")],  # under the threshold, alone
+            [Detection((100.0, 100.0, 120.0, 124.0), 0.55, "unripe"),
+             Detection((212.0, 184.0, 252.0, 224.0), 0.4, "ripe")],  # the whole frame's 0.3 box: together 0.58
         ],
     })
     found = network.detect(np.zeros((480, 640, 3), dtype=np.uint8), 0.5, grid=2)
-    assert [(d.bbox, d.score, d.label) for d in found] == [
-        ((100.0, 100.0, 160.0, 170.0), 0.9, "ripe"),
+    assert [(d.bbox, round(d.score, 6), d.label) for d in found] == [
+        ((100.0, 100.0, 160.0, 170.0), 0.97, "ripe"),  # 1 - (1 - 0.9)(1 - 0.7)
         ((30.0, 40.0, 44.0, 56.0), 0.6, "ripe"),
-        ((388.0, 316.0, 408.0, 340.0), 0.55, "unripe"),  # shifted by the window's corner (288, 216)
+        ((500.0, 400.0, 540.0, 440.0), 0.58, "ripe"),  # shifted by the window's corner (288, 216); 1 - 0.7 * 0.6
+        ((388.0, 316.0, 408.0, 340.0), 0.55, "unripe"),
     ]
 
 

@@ -6,7 +6,7 @@ scores above a floor, the top 300 candidates, class-wise NMS at IoU 0.55, at mos
 to the network input with PIL's antialiased bilinear filter (a 640x480 frame then
 looks like the 320 px renders the network was trained on) and boxes are scaled back.
 With `grid` > 1 the frame's overlapping windows are searched as well (`tiling`) and
-everything found is merged by class-wise NMS.
+what the passes found is merged (`fusion`).
 """
 
 from __future__ import annotations
@@ -19,6 +19,8 @@ import numpy as np
 from PIL import Image
 
 from renderloop.errors import UserError
+from renderloop.perception.boxes import classwise_nms
+from renderloop.perception.fusion import fuse
 from renderloop.perception.tiling import cut_by_window, windows
 
 CLASSES = ("ripe", "unripe")
@@ -27,7 +29,7 @@ NMS_IOU = 0.55
 TOPK_CANDIDATES = 300
 MAX_DETECTIONS = 300
 SCORE_FLOOR = 0.01  # torchvision's score_thresh: candidates below it never reach NMS
-MERGE_IOU = 0.4  # NMS across the whole frame's and the windows' boxes: one fruit boxed by two passes differs more
+PASS_FLOOR = 0.1  # with windows, each pass's boxes down to this score are merged: weak ones that agree add up
 SHIPPED_MODEL = "pepper_ssdlite.onnx"
 
 
@@ -43,35 +45,6 @@ class Detection:
 
 def shipped_model() -> Path:
     return Path(str(resources.files("renderloop.perception").joinpath("model", SHIPPED_MODEL)))
-
-
-def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """IoU matrix of boxes (N, 4) and (M, 4), x0 y0 x1 y1."""
-    top_left = np.maximum(a[:, None, :2], b[None, :, :2])
-    bottom_right = np.minimum(a[:, None, 2:], b[None, :, 2:])
-    size = np.clip(bottom_right - top_left, 0, None)
-    inter = size[..., 0] * size[..., 1]
-    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
-    area_b = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
-    return inter / np.maximum(area_a[:, None] + area_b[None, :] - inter, np.finfo(inter.dtype).tiny)
-
-
-def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> np.ndarray:
-    """Greedy NMS: indices of kept boxes by decreasing score (stable for ties)."""
-    order = np.argsort(-scores, kind="stable")
-    iou = box_iou(boxes[order], boxes[order])
-    keep = np.ones(len(order), dtype=bool)
-    for i in range(len(order)):
-        if keep[i]:
-            keep[i + 1 :] &= iou[i, i + 1 :] <= iou_threshold
-    return order[keep]
-
-
-def classwise_nms(boxes: np.ndarray, scores: np.ndarray, labels: np.ndarray, iou_threshold: float) -> np.ndarray:
-    """NMS within each class in one pass: boxes of different classes are moved apart so they never
-    overlap (torchvision's trick)."""
-    offsets = (labels[:, None] * (boxes.max() + 1.0)).astype(boxes.dtype)
-    return nms(boxes + offsets, scores, iou_threshold)
 
 
 def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, score_threshold: float) -> list[Detection]:
@@ -137,22 +110,23 @@ class Detector:
         if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
             raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
         height, width = rgb.shape[:2]
-        found = self._detect_once(rgb, score_threshold)
         parts = windows(width, height, grid, INPUT_SIZE)
         if not parts:
-            return found
-        for x0, y0, x1, y1 in parts:
-            for detection in self._detect_once(np.ascontiguousarray(rgb[y0:y1, x0:x1]), score_threshold):
+            return self._detect_once(rgb, score_threshold)
+        floor = min(PASS_FLOOR, score_threshold)
+        found = [(0, detection) for detection in self._detect_once(rgb, floor)]
+        for number, (x0, y0, x1, y1) in enumerate(parts, start=1):
+            for detection in self._detect_once(np.ascontiguousarray(rgb[y0:y1, x0:x1]), floor):
                 a, b, c, d = detection.bbox
                 box = (a + x0, b + y0, c + x0, d + y0)
                 if not cut_by_window(box, (x0, y0, x1, y1), width, height):
-                    found.append(Detection(box, detection.score, detection.label))
+                    found.append((number, Detection(box, detection.score, detection.label)))
         if not found:
             return []
-        boxes = np.array([d.bbox for d in found], dtype=np.float32)
-        scores = np.array([d.score for d in found], dtype=np.float32)
-        labels = np.array([CLASSES.index(d.label) + 1 for d in found])
-        return [found[k] for k in classwise_nms(boxes, scores, labels, MERGE_IOU)[:MAX_DETECTIONS]]
+        leaders, scores = fuse(np.array([d.bbox for _, d in found]), np.array([d.score for _, d in found]),
+                               np.array([number for number, _ in found]))
+        return [Detection(found[k][1].bbox, float(score), found[k][1].label)
+                for k, score in zip(leaders, scores, strict=True) if score >= score_threshold][:MAX_DETECTIONS]
 
     def _detect_once(self, rgb: np.ndarray, score_threshold: float) -> list[Detection]:
         boxes, scores = self.raw(rgb)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderloop.perception.detector import box_iou
+from renderloop.perception.boxes import box_iou
 
 MIN_SIDE = 20
 MATCH_IOU = 0.5
