@@ -19,7 +19,7 @@ import numpy as np
 from PIL import Image
 
 from renderloop.errors import UserError
-from renderloop.perception.boxes import classwise_nms
+from renderloop.perception.boxes import nms
 from renderloop.perception.fusion import fuse
 from renderloop.perception.tiling import cut_by_window, windows
 
@@ -66,7 +66,9 @@ def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, 
     if len(index) == 0:
         return []
     cand_boxes, cand_scores = boxes[index], scores[index, labels]
-    keep = classwise_nms(cand_boxes, cand_scores, labels, NMS_IOU)[:MAX_DETECTIONS]
+    # class-wise NMS in one pass: boxes of different classes are moved apart so they never overlap (torchvision's trick)
+    offsets = (labels[:, None] * (cand_boxes.max() + 1.0)).astype(np.float32)
+    keep = nms(cand_boxes + offsets, cand_scores, NMS_IOU)[:MAX_DETECTIONS]
     scale = np.array([width, height, width, height], dtype=np.float64) / INPUT_SIZE
     return [Detection(tuple(float(v) for v in cand_boxes[k] * scale), float(cand_scores[k]), CLASSES[labels[k] - 1])
             for k in keep]

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderloop.perception.boxes import box_iou
+from renderloop.perception.boxes import box_area, box_iou, intersection
 
 MIN_SIDE = 20
 MATCH_IOU = 0.5
@@ -55,10 +55,8 @@ def share_inside(box: list[float], regions: list[tuple[int, int, int, int]]) -> 
     """The largest share of `box`'s area that lies inside one of `regions` (0 when there are none)."""
     if not regions:
         return 0.0
-    a, b = np.asarray(box, dtype=float), np.asarray(regions, dtype=float)
-    size = np.clip(np.minimum(a[2:], b[:, 2:]) - np.maximum(a[:2], b[:, :2]), 0.0, None)
-    area = max((a[2] - a[0]) * (a[3] - a[1]), np.finfo(float).tiny)
-    return float((size[:, 0] * size[:, 1]).max() / area)
+    a = np.asarray([box], dtype=float)
+    return float(intersection(a, np.asarray(regions, dtype=float)).max() / max(box_area(a)[0], np.finfo(float).tiny))
 
 
 class RunScore:
