@@ -10,13 +10,12 @@ import numpy as np
 import pytest
 
 from renderloop.dataset.build import build_dataset
-from renderloop.dataset.labels import MIN_SIDE, pepper_boxes
+from renderloop.dataset.labels import MIN_SIDE, pepper_boxes, pepper_vertices
 from renderloop.dataset.scenes import DatasetSpec, dataset_scene
 from renderloop.dataset.views import random_view
 from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
 from renderloop.render.raster import RasterRenderer
-from renderloop.scene.plant_meshes import plant_meshes
 
 TINY = DatasetSpec(seed=3, width=64, height=48, views_per_scene=2, samples=(1,), val_every=2)
 
@@ -71,9 +70,7 @@ def test_boxes_cover_the_mask_and_unhidden_fruit_are_fully_visible():
     config, scene = dataset_scene(spec, 0)
     intrinsics = Intrinsics.from_config(config.camera)
     peppers = {p.id: p for p in scene.peppers}
-    meshes = {}
-    for plant in scene.plants:
-        meshes.update({k: m.vertices for k, m in plant_meshes(plant, scene.peppers_of(plant.id)).peppers.items()})
+    meshes = pepper_vertices(scene)
     rng = np.random.default_rng(1)
     fractions, records_seen = [], 0
     with RasterRenderer(scene, config, intrinsics) as renderer:

@@ -108,10 +108,11 @@ def test_photo_folders(rendered: Path, model: Path, tmp_path: Path, monkeypatch,
 
     Image.open(photos / "a.png").convert("RGB").resize((500, 333)).save(photos / "d.jpg")
     out = tmp_path / "found.json"
-    code, stdout, _ = cli(monkeypatch, capsys, "detect", "--images", str(photos), "--out", str(out), "--model", str(model), "--threshold", "0.3")
+    code, stdout, _ = cli(monkeypatch, capsys, "detect", "--images", str(photos), "--out", str(out), "--model", str(model), "--threshold", "0.3",
+                                  "--mirror")
     assert code == 0 and "4 photos" in stdout
     found = json.loads(out.read_text())
-    assert found["complete"] and sorted(found["images"]) == ["a.png", "b.png", "c.png", "d.jpg"]
+    assert found["complete"] and found["mirror"] is True and sorted(found["images"]) == ["a.png", "b.png", "c.png", "d.jpg"]
     assert found["images"]["a.png"] == found["images"]["b.png"] and found["images"]["a.png"]["detections"]
     assert found["images"]["d.jpg"]["width"] == 500
     assert all(d["bbox"][2] <= 500 and d["bbox"][3] <= 333 for d in found["images"]["d.jpg"]["detections"])

@@ -77,3 +77,28 @@ def test_grid_one_is_the_whole_frame_alone() -> None:
     whole = [Detection((1.0, 2.0, 30.0, 40.0), 0.9, "ripe")]
     network = ScriptedNetwork({(480, 640): [whole]})
     assert network.detect(np.zeros((480, 640, 3), dtype=np.uint8), 0.5, grid=1) == whole
+
+
+class BrightPatchNetwork(Detector):
+    """A 'network' that boxes the bright pixels of whatever view it is given, at score 0.5: where a pass
+    puts the box depends on the pixels it was shown, so the mirroring is tested, not assumed."""
+
+    def __init__(self) -> None:
+        self.passes = 0
+
+    def _detect_once(self, rgb: np.ndarray, score_threshold: float) -> list[Detection]:
+        self.passes += 1
+        rows, cols = np.nonzero(rgb[:, :, 0])
+        if len(rows) == 0:
+            return []
+        return [Detection((float(cols.min()), float(rows.min()), float(cols.max() + 1), float(rows.max() + 1)), 0.5, "ripe")]
+
+
+@pytest.mark.parametrize(("grid", "passes", "passes_holding_the_patch"), [(1, 2, 2), (2, 6, 3)])
+def test_the_mirrored_pass_comes_back_unmirrored_and_fuses(grid: int, passes: int, passes_holding_the_patch: int) -> None:
+    frame = np.zeros((480, 640, 3), dtype=np.uint8)
+    frame[60:100, 100:141] = 255  # off-centre: a box left un-mirrored would land at x 499-540
+    network = BrightPatchNetwork()
+    found = network.detect(frame, 0.5, grid=grid, mirror=True)
+    assert network.passes == passes
+    assert [(d.bbox, d.score) for d in found] == [((100.0, 60.0, 141.0, 100.0), pytest.approx(1 - 0.5 ** passes_holding_the_patch))]

@@ -22,6 +22,7 @@ from renderloop import __version__
 from renderloop.config import PRESETS, DetectorConfig, load_config
 from renderloop.counting.stage import read_counts, run_count
 from renderloop.dataset.build import build_dataset
+from renderloop.dataset.from_runs import dataset_from_runs
 from renderloop.dataset.scenes import DatasetSpec
 from renderloop.errors import UserError
 from renderloop.evaluation.runner import evaluate
@@ -139,6 +140,20 @@ def dataset(
     typer.echo(f"dataset: rendered {made} images, {images} in {out}")
 
 
+@app.command("dataset-from-runs")
+def dataset_runs(
+    run_dirs: Annotated[list[Path], typer.Argument(help="Rendered run directories (with masks); the last --val-runs validate.",
+                                                   show_default=False)],
+    out: Annotated[Path, typer.Option(help="Dataset folder to (re)write: images/, labels/, annotations/.")],
+    every: Annotated[int, typer.Option(min=1, max=1_000_000, help="Take every N-th frame of each run.")] = 1,
+    val_runs: Annotated[int, typer.Option(min=0, help="How many of the last runs form the validation split.")] = 1,
+) -> None:
+    """A COCO detection dataset of the frames scan runs flew, boxes from their masks: fine-tuning data in the flight's own views."""
+    with _progress_bar("dataset") as progress:
+        made = dataset_from_runs(run_dirs, out, every, val_runs, progress)
+    typer.echo(f"dataset: {made} frames of {len(run_dirs)} runs in {out}")
+
+
 @app.command()
 def train(
     dataset_dirs: Annotated[list[Path], typer.Argument(help="Dataset folders made by `renderloop dataset`; several train together.",
@@ -174,6 +189,8 @@ def detect(
     threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help="Score threshold; default: the config's (0.6).")] = None,
     grid: Annotated[int | None, typer.Option(min=1, max=8, help="Also search grid x grid windows of each image; 1: whole images "
                                               "only; default: the config's (2).")] = None,
+    mirror: Annotated[bool | None, typer.Option("--mirror/--no-mirror", help="Also search each image mirrored; "
+                                                "default: the config's.", show_default=False)] = None,
     force: Force = False,
 ) -> None:
     """Detect peppers: detections.json (boxes, scores, ripe/unripe, 3D world points) of a run, or of a photo folder."""
@@ -185,11 +202,11 @@ def detect(
         with _progress_bar("detect") as progress:
             defaults = DetectorConfig()
             count = detect_photos(images, out, model, defaults.score_threshold if threshold is None else threshold,
-                                  defaults.grid if grid is None else grid, progress)
+                                  defaults.grid if grid is None else grid, defaults.mirror if mirror is None else mirror, progress)
         typer.echo(f"detect: {count} photos -> {out}")
         return
     config = read_config(run_dir)
-    overrides = {k: v for k, v in {"score_threshold": threshold, "grid": grid}.items() if v is not None}
+    overrides = {k: v for k, v in {"score_threshold": threshold, "grid": grid, "mirror": mirror}.items() if v is not None}
     config = config.model_copy(update={"detector": config.detector.model_copy(update=overrides)})
     with _progress_bar("detect") as progress:
         made = run_detect(run_dir, config, force or bool(overrides), model, progress)

@@ -10,6 +10,7 @@ redoes it even when no input changed.
 `detections.json` (written by `renderloop detect`)::
 
     {"model": str, "score_threshold": float in [0, 1], "grid": int >= 1 (optional: windows per side searched),
+     "mirror": bool (optional: the mirrored frame searched too),
      "depth": str (optional: "depth" or "depth_sensor"),
      "frames": [{"index": int >= 0, "timestamp": float, "image": "rgb/000000.png",
                  "detections": [{"bbox": [x0, y0, x1, y1] (pixels, x0 <= x1, y0 <= y1),
@@ -96,6 +97,7 @@ class Detections(_Strict):
     model: str
     score_threshold: Unit
     grid: int = Field(1, ge=1)  # windows per side the detector searched besides the whole frame; informational
+    mirror: bool = False  # whether the detector also searched the mirrored frame; informational
     depth: str | None = None  # which depth images gave the positions; informational
     frames: list[Frame]
 

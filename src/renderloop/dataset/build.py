@@ -26,7 +26,7 @@ import numpy as np
 from PIL import Image
 
 from renderloop.dataset.coco import write_coco
-from renderloop.dataset.labels import pepper_boxes
+from renderloop.dataset.labels import pepper_boxes, pepper_vertices
 from renderloop.dataset.preview import draw_preview
 from renderloop.dataset.scenes import DatasetSpec, dataset_scene
 from renderloop.dataset.views import random_view
@@ -34,7 +34,6 @@ from renderloop.errors import UserError
 from renderloop.io.atomic import write_bytes, write_json
 from renderloop.render.camera import Intrinsics
 from renderloop.render.executor import ray_session, spawnable_sys_path
-from renderloop.scene.plant_meshes import plant_meshes
 
 VIEW_STREAM = 0x71E3
 JPEG_QUALITY = 95
@@ -61,9 +60,7 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
     rng = np.random.default_rng(np.random.SeedSequence([spec.seed, VIEW_STREAM, scene_index]))
     poses = [random_view(scene, rng, spec.distance) for _ in range(spec.views_per_scene)]  # all drawn, so a view never depends on which are done
     peppers = {pepper.id: pepper for pepper in scene.peppers}
-    meshes = {}
-    for plant in scene.plants:
-        meshes.update({k: m.vertices for k, m in plant_meshes(plant, scene.peppers_of(plant.id)).peppers.items()})
+    meshes = pepper_vertices(scene)
     out = []
     with CyclesRenderer(scene, config, intrinsics) as renderer:
         for view in view_indices:

@@ -18,7 +18,8 @@ from scipy.spatial import ConvexHull, QhullError
 
 from renderloop.perception.scoring import mask_boxes
 from renderloop.render.camera import Intrinsics
-from renderloop.scene.model import Pepper
+from renderloop.scene.model import Pepper, Scene
+from renderloop.scene.plant_meshes import plant_meshes
 
 MIN_SIDE = 6  # px at the dataset's 320 px width
 MIN_VISIBLE = 0.25
@@ -27,6 +28,14 @@ LABELS = ("ripe", "unripe")  # COCO category ids 1 and 2
 
 def label_of(pepper: Pepper) -> str:
     return "ripe" if pepper.ripe else "unripe"
+
+
+def pepper_vertices(scene: Scene) -> dict[int, np.ndarray]:
+    """Pepper id -> the vertices of its mesh in the world: the silhouettes' hulls are made of them."""
+    vertices = {}
+    for plant in scene.plants:
+        vertices.update({k: m.vertices for k, m in plant_meshes(plant, scene.peppers_of(plant.id)).peppers.items()})
+    return vertices
 
 
 def silhouette_pixels(vertices: np.ndarray, pose: np.ndarray, intrinsics: Intrinsics, near: float) -> int | None:
@@ -49,14 +58,14 @@ def silhouette_pixels(vertices: np.ndarray, pose: np.ndarray, intrinsics: Intrin
 
 
 def pepper_boxes(mask: np.ndarray, peppers: dict[int, Pepper], meshes: dict[int, np.ndarray], pose: np.ndarray,
-                 intrinsics: Intrinsics, near: float) -> list[dict]:
+                 intrinsics: Intrinsics, near: float, min_side: float = MIN_SIDE) -> list[dict]:
     """One record per pepper seen in `mask`: its box, label, visible pixels and visible fraction, and whether it is ignored."""
     pixels = np.bincount(mask.ravel())
     records = []
     for pepper_id, box in mask_boxes(mask).items():
         silhouette = silhouette_pixels(meshes[pepper_id], pose, intrinsics, near)
         visible = pixels[pepper_id] / silhouette if silhouette else 1.0
-        tiny = min(box[2] - box[0], box[3] - box[1]) < MIN_SIDE
+        tiny = min(box[2] - box[0], box[3] - box[1]) < min_side
         records.append({
             "pepper_id": pepper_id, "bbox": list(box), "label": label_of(peppers[pepper_id]), "pixels": int(pixels[pepper_id]),
             "visible_fraction": round(min(visible, 1.0), 4),

@@ -1,6 +1,6 @@
 """`renderloop detect --images FOLDER --out FILE.json`: the detector on any photos, no depth.
 
-FILE.json: {"model": path, "score_threshold": t, "grid": g, "complete": bool, "error": str | null,
+FILE.json: {"model": path, "score_threshold": t, "grid": g, "mirror": m, "complete": bool, "error": str | null,
             "images": {"name.jpg": {"width": w, "height": h, "detections": [{"bbox", "score", "label"}]}}}
 A photo that cannot be read stops the run: the photos before it are written
 (complete: false, with the error) and the command exits with code 2 naming it.
@@ -41,20 +41,20 @@ def _read_rgb(path: Path) -> np.ndarray:
         raise UserError(f"{path}: not a readable image") from None
 
 
-def detect_photos(folder: Path, out: Path, model: Path | None, threshold: float, grid: int,
+def detect_photos(folder: Path, out: Path, model: Path | None, threshold: float, grid: int, mirror: bool,
                   progress: Progress | None = None) -> int:
     photos = list_photos(folder)
     if Path(out).is_dir():
         raise UserError(f"--out {out}: is a folder; give a .json file name")
     detector = Detector(model)
     results: dict[str, dict] = {}
-    record = {"model": str(detector.path), "score_threshold": threshold, "grid": grid, "complete": False, "error": None, "images": results}
+    record = {"model": str(detector.path), "score_threshold": threshold, "grid": grid, "mirror": mirror, "complete": False, "error": None, "images": results}
     try:
         for done, path in enumerate(photos):
             if progress:
                 progress(done, len(photos))
             rgb = _read_rgb(path)
-            found = detector.detect(rgb, threshold, grid)
+            found = detector.detect(rgb, threshold, grid, mirror)
             results[path.name] = {"width": rgb.shape[1], "height": rgb.shape[0], "detections": [d.to_json() for d in found]}
     except UserError as error:
         record["error"] = str(error)

@@ -1,7 +1,7 @@
 """`renderloop detect DIR`: 2D pepper detections on every frame and their 3D points in the world.
 
 detections.json (UTF-8, SI units):
-    {"model": path, "score_threshold": t, "grid": g, "depth": "depth_sensor" | "depth",
+    {"model": path, "score_threshold": t, "grid": g, "mirror": m, "depth": "depth_sensor" | "depth",
      "frames": [{"index": i, "timestamp": s, "image": "rgb/NNNNNN.png",
                  "detections": [{"bbox": [x0, y0, x1, y1], "score": p, "label": "ripe" | "unripe",
                                  "position": [x, y, z] | null}]}]}
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from renderloop.config import Config
+from renderloop.config import Config, DetectorConfig
 from renderloop.errors import UserError
 from renderloop.io import rundir
 from renderloop.io.atomic import write_json
@@ -66,7 +66,7 @@ def _read_cache(path: Path, model: str) -> list[dict]:
 
 
 def detect_frame(detector: Detector, run_dir: Path, index: int, timestamp: float, pose: np.ndarray,
-                 depth_dir: str, threshold: float, grid: int, intrinsics) -> dict:
+                 depth_dir: str, settings: DetectorConfig, intrinsics) -> dict:
     rgb_path = run_dir / "rgb" / frame_name(index)
     depth_path = run_dir / depth_dir / frame_name(index)
     rgb = read_png(rgb_path, np.uint8)
@@ -79,7 +79,7 @@ def detect_frame(detector: Detector, run_dir: Path, index: int, timestamp: float
         raise UserError(f"{depth_path}: {depth.shape[1]}x{depth.shape[0]} does not match camera_info.yaml")
     cloud, ripe_pixels = organised_cloud(depth, intrinsics), ripe_coloured(rgb)
     detections = []
-    for detection in detector.detect(rgb, threshold, grid):
+    for detection in detector.detect(rgb, settings.score_threshold, settings.grid, settings.mirror):
         point = fruit_point(cloud, detection.bbox, intrinsics.fx, ripe_pixels if detection.label == "ripe" else None)
         world = None if point is None else [round(float(v), 5) for v in to_world(point, pose)]
         detections.append({**detection.to_json(), "position": world})
@@ -93,12 +93,12 @@ def run_detect(run_dir: Path, config: Config, force: bool = False, model: Path |
     if not force and model is None and rundir.complete(run_dir, OUTPUTS, INPUTS):
         return False
     detector = Detector(model if model is not None else config.detector.model)
-    threshold, grid = config.detector.score_threshold, config.detector.grid
+    settings = config.detector
     times, poses = load_poses(run_dir)
     intrinsics = read_camera_info(run_dir / "camera_info.yaml")
     depth_dir = sensor_depth_dir(run_dir)
     cache = run_dir / CACHE
-    key = f"{detector.path}@{threshold}@{grid}@{depth_dir}"
+    key = f"{detector.path}@{settings.score_threshold}@{settings.grid}@{settings.mirror}@{depth_dir}"
     frames = [] if force else _read_cache(cache, key)
     with open(cache, "w", encoding="utf-8") as out:  # rewritten from what was valid, then appended to
         out.writelines(json.dumps({"model": key, "frame": frame}) + "\n" for frame in frames)
@@ -106,15 +106,14 @@ def run_detect(run_dir: Path, config: Config, force: bool = False, model: Path |
         for index in range(len(frames), len(poses)):
             if progress:
                 progress(index, len(poses))
-            frame = detect_frame(detector, run_dir, index, times[index], poses[index], depth_dir, threshold, grid,
-                                 intrinsics)
+            frame = detect_frame(detector, run_dir, index, times[index], poses[index], depth_dir, settings, intrinsics)
             out.write(json.dumps({"model": key, "frame": frame}) + "\n")
             out.flush()
             frames.append(frame)
     if progress:
         progress(len(poses), len(poses))
-    write_json(run_dir / "detections.json", {"model": str(detector.path), "score_threshold": threshold, "grid": grid,
-                                             "depth": depth_dir, "frames": frames})
+    write_json(run_dir / "detections.json", {"model": str(detector.path), "score_threshold": settings.score_threshold,
+                                             "grid": settings.grid, "mirror": settings.mirror, "depth": depth_dir, "frames": frames})
     write_json(run_dir / "detection_scores.json", score_run(run_dir, frames))
     draw_detection_sheet(run_dir, frames, run_dir / "detections.png")
     cache.unlink(missing_ok=True)
