@@ -43,7 +43,8 @@ PREVIEW_IMAGES = 12
 Progress = Callable[[int, int], None]
 
 
-def _frames(run_dir: Path, every: int) -> list[int]:
+def _frames(run_dir: Path, every: int) -> tuple[np.ndarray, list[int]]:
+    """The run's camera poses and the indices of its chosen frames, each checked to be rendered with its mask."""
     rundir.require(run_dir, INPUTS, "render")
     _, poses = load_poses(run_dir)
     indices = list(range(0, len(poses), every))
@@ -51,15 +52,14 @@ def _frames(run_dir: Path, every: int) -> list[int]:
         missing = next((i for i in indices if not (run_dir / sub / frame_name(i)).is_file()), None)
         if missing is not None:
             raise UserError(f"{run_dir / sub / frame_name(missing)}: missing (render the run with masks first)")
-    return indices
+    return poses, indices
 
 
-def _run_records(run_dir: Path, indices: list[int], first: int, split: str, out: Path) -> list[dict]:
+def _run_records(run_dir: Path, poses: np.ndarray, indices: list[int], first: int, split: str, out: Path) -> list[dict]:
     """Write the run's chosen frames as JPEG images and label files; their records in order."""
     scene = load_scene(run_dir / "scene.json")
     near = rundir.read_config(run_dir).camera.clip[0]
     intrinsics = read_camera_info(run_dir / "camera_info.yaml")
-    _, poses = load_poses(run_dir)
     peppers = {pepper.id: pepper for pepper in scene.peppers}
     meshes = pepper_vertices(scene)
     min_side = MIN_SIDE * intrinsics.width / LABEL_WIDTH
@@ -104,17 +104,17 @@ def dataset_from_runs(runs: list[Path], out: Path, every: int = 1, val_runs: int
         (out / sub).mkdir(parents=True, exist_ok=True)
         for stale in (out / sub).glob("*"):
             stale.unlink()
-    total, records = sum(len(c) for c in chosen), []
-    for number, (run, indices) in enumerate(zip(runs, chosen)):
+    total, records = sum(len(indices) for _, indices in chosen), []
+    for number, (run, (poses, indices)) in enumerate(zip(runs, chosen)):
         split = "val" if number >= len(runs) - val_runs else "train"
-        records += _run_records(run, indices, len(records), split, out)
+        records += _run_records(run, poses, indices, len(records), split, out)
         if progress:
             progress(len(records), total)
     write_coco(out / "annotations", records)
     write_json(out / "dataset.json", {
         "source": "runs", "every": every, "val_runs": val_runs,
         "runs": [{"path": str(run), "frames": len(indices),
-                  "scene_sha256": hashlib.sha256((run / "scene.json").read_bytes()).hexdigest()} for run, indices in zip(runs, chosen)],
+                  "scene_sha256": hashlib.sha256((run / "scene.json").read_bytes()).hexdigest()} for run, (_, indices) in zip(runs, chosen)],
     })
     draw_preview(out, records[::max(1, len(records) // PREVIEW_IMAGES)][:PREVIEW_IMAGES], out / "preview.png")
     return len(records)

@@ -1,7 +1,7 @@
-"""Merging the boxes of several detector passes over one frame: the whole frame and its windows.
+"""Merging the boxes of several detector passes over one frame: the whole frame, its mirror image and its windows.
 
 One fruit is usually boxed by more than one pass; a false box seldom is, because each
-pass sees the scene at another scale and crop. So overlapping boxes (IoU >= FUSE_IOU,
+pass sees the scene at another scale, crop or handedness. So overlapping boxes (IoU >= FUSE_IOU,
 whatever their class) are one object, boxed and labelled by its best box, scored by the
 noisy-OR of each pass's best score for it, 1 - prod(1 - s): the chance that at least one
 pass is right, were they independent. Agreement lifts a fruit that each pass saw at
