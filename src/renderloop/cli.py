@@ -186,7 +186,7 @@ def detect(
     images: Annotated[Path | None, typer.Option(help="Detect on this folder of photos instead (PNG/JPEG, no depth).")] = None,
     out: Annotated[Path | None, typer.Option(help="With --images: the JSON file to write.")] = None,
     model: Annotated[Path | None, typer.Option(help="ONNX model; default: the config's, else the shipped one.")] = None,
-    threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help="Score threshold; default: the config's (0.72).")] = None,
+    threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help="Score threshold; default: the config's (0.63).")] = None,
     grid: Annotated[int | None, typer.Option(min=1, max=8, help="Also search grid x grid windows of each image; 1: whole images "
                                               "only; default: the config's (2).")] = None,
     mirror: Annotated[bool | None, typer.Option("--mirror/--no-mirror", help="Also search each image mirrored; "

@@ -261,8 +261,8 @@ class RendererConfig(Strict):
 class DetectorConfig(Strict):
     model: Path | None = Field(None, description="ONNX model; null means the one shipped in the package.")
     input_size: PositiveInt = 320
-    score_threshold: float = Field(0.72, ge=0, le=1, description="Score a detection needs. Fused scores run higher than "
-                                   "one pass's: 0.72 gave at most 5 % false detections on held-out paper runs (README, Perception).")
+    score_threshold: float = Field(0.63, ge=0, le=1, description="Score a detection needs. Fused scores run higher than "
+                                   "one pass's: 0.63 gave at most 5 % false detections on held-out paper runs (README, Perception).")
     grid: PositiveInt = Field(
         2, le=8, description="Also search grid x grid overlapping windows of each frame, where small fruit look larger "
         "(1 + grid^2 network passes a frame; perception/tiling.py); 1: the whole frame only.")
