@@ -47,6 +47,13 @@ def image_name(index: int, suffix: str) -> str:
     return f"{index:06d}.{suffix}"
 
 
+def jpeg_bytes(rgb: np.ndarray) -> bytes:
+    """The dataset's image encoding: JPEG keeps a set small enough to carry to a training machine."""
+    buffer = io.BytesIO()
+    Image.fromarray(rgb).save(buffer, format="JPEG", quality=JPEG_QUALITY)
+    return buffer.getvalue()
+
+
 def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[int], threads: int = 0) -> Rendered:
     """Render the given views of one dataset scene: (image index, JPEG bytes, label record) each."""
     from renderloop.render.cycles import (
@@ -65,8 +72,6 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
     with CyclesRenderer(scene, config, intrinsics) as renderer:
         for view in view_indices:
             frame = renderer.render(poses[view])
-            buffer = io.BytesIO()
-            Image.fromarray(frame.rgb).save(buffer, format="JPEG", quality=JPEG_QUALITY)
             index = scene_index * spec.views_per_scene + view
             record = {
                 "image": f"images/{image_name(index, 'jpg')}", "scene": scene_index, "width": intrinsics.width,
@@ -74,7 +79,7 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
                 "samples": config.renderer.samples, "pose": np.round(poses[view], 9).tolist(),
                 "peppers": pepper_boxes(frame.mask, peppers, meshes, poses[view], intrinsics, config.camera.clip[0]),
             }
-            out.append((index, buffer.getvalue(), record))
+            out.append((index, jpeg_bytes(frame.rgb), record))
     return out
 
 

@@ -16,15 +16,13 @@ Validation holds whole runs (the last `val_runs` given). The layout is the datas
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from PIL import Image
 
-from renderloop.dataset.build import JPEG_QUALITY, image_name
+from renderloop.dataset.build import MANIFEST, image_name, jpeg_bytes
 from renderloop.dataset.coco import write_coco
 from renderloop.dataset.labels import MIN_SIDE, pepper_boxes, pepper_vertices
 from renderloop.dataset.preview import draw_preview
@@ -70,9 +68,7 @@ def _run_records(run_dir: Path, poses: np.ndarray, indices: list[int], first: in
         if rgb.shape[:2] != mask.shape or rgb.shape[:2] != (intrinsics.height, intrinsics.width):
             raise UserError(f"{mask_path}: its size does not match {rgb_path} and camera_info.yaml")
         name = image_name(first + offset, "jpg")
-        buffer = io.BytesIO()
-        Image.fromarray(rgb).save(buffer, format="JPEG", quality=JPEG_QUALITY)
-        write_bytes(out / "images" / name, buffer.getvalue())
+        write_bytes(out / "images" / name, jpeg_bytes(rgb))
         record = {
             "image": f"images/{name}", "scene": str(run_dir), "frame": index, "width": intrinsics.width,
             "height": intrinsics.height, "split": split, "pose": np.round(poses[index], 9).tolist(),
@@ -98,7 +94,7 @@ def dataset_from_runs(runs: list[Path], out: Path, every: int = 1, val_runs: int
     if not 0 <= val_runs < len(runs):
         raise UserError(f"--val-runs {val_runs}: must leave at least one of the {len(runs)} runs for training")
     chosen = [_frames(run, every) for run in runs]  # every run checked before anything is written
-    if (out / "dataset.json").is_file() and _source(out / "dataset.json") != "runs":
+    if (out / MANIFEST).is_file() and _source(out / MANIFEST) != "runs":
         raise UserError(f"{out}: holds a rendered dataset (see dataset.json); give another --out")
     for sub in ("images", "labels", "annotations"):
         (out / sub).mkdir(parents=True, exist_ok=True)
@@ -111,7 +107,7 @@ def dataset_from_runs(runs: list[Path], out: Path, every: int = 1, val_runs: int
         if progress:
             progress(len(records), total)
     write_coco(out / "annotations", records)
-    write_json(out / "dataset.json", {
+    write_json(out / MANIFEST, {
         "source": "runs", "every": every, "val_runs": val_runs,
         "runs": [{"path": str(run), "frames": len(indices),
                   "scene_sha256": hashlib.sha256((run / "scene.json").read_bytes()).hexdigest()} for run, (_, indices) in zip(runs, chosen)],
