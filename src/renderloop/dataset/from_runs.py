@@ -95,7 +95,7 @@ def dataset_from_runs(runs: list[Path], out: Path, every: int = 1, val_runs: int
         raise UserError(f"--val-runs {val_runs}: must leave at least one of the {len(runs)} runs for training")
     chosen = [_frames(run, every) for run in runs]  # every run checked before anything is written
     if (out / MANIFEST).is_file() and _source(out / MANIFEST) != "runs":
-        raise UserError(f"{out}: holds a rendered dataset (see dataset.json); give another --out")
+        raise UserError(f"{out}: holds a rendered dataset (see {MANIFEST}); give another --out")
     for sub in ("images", "labels", "annotations"):
         (out / sub).mkdir(parents=True, exist_ok=True)
         for stale in (out / sub).glob("*"):

@@ -10,7 +10,7 @@ With `grid` > 1 the frame's overlapping windows are searched as well (`tiling`),
 elsewhere: the network is not exactly symmetric), and what the passes found is merged
 (`fusion`). The windows are not mirrored: for four more passes, that found no more
 fruit at the same rate of false detections on held-out paper seeds (measured with the
-step-6 model of MODEL_CARD.md).
+step-6 and step-8 models of MODEL_CARD.md).
 """
 
 from __future__ import annotations
