@@ -17,7 +17,7 @@ from renderloop.perception.boxes import nms
 from renderloop.perception.detector import Detector, postprocess, to_input
 from renderloop.perception.training.ssd import DecodedSSD, build_model, export_onnx
 from renderloop.perception.training.torch_support import import_torchvision
-from renderloop.perception.training.train import TrainSettings, train_detector
+from renderloop.perception.training.train import TrainSettings, _schedule, train_detector
 
 from conftest import jittered_model
 
@@ -111,6 +111,15 @@ def test_onnx_model_gives_the_torch_models_outputs(tmp_path: Path):
     assert np.allclose(scores, expected_scores.numpy(), atol=2e-5)
     found = detector.detect(rgb, 0.3)
     assert all(0 <= d.bbox[0] <= d.bbox[2] <= 320 and 0 <= d.bbox[1] <= d.bbox[3] <= 240 for d in found)
+
+
+def test_learning_rate_warms_up_linearly_then_decays_to_zero_over_the_run():
+    factor = _schedule(TrainSettings(epochs=2, warmup_steps=10), steps_per_epoch=25)
+    rates = [factor(step) for step in range(50)]
+    assert rates[:10] == pytest.approx([(step + 1) / 10 for step in range(10)])
+    assert rates[10] == 1.0 and all(a > b for a, b in zip(rates[10:], rates[11:]))
+    assert rates[-1] < 0.01
+    assert _schedule(TrainSettings(warmup_steps=0), steps_per_epoch=5)(0) == 1.0  # no warm-up: full rate at once
 
 
 def test_training_checkpoints_resumes_and_exports(tiny_dataset: Path, tmp_path: Path):

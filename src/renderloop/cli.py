@@ -162,6 +162,8 @@ def train(
     epochs: Annotated[int, typer.Option(min=1, max=100_000)] = 30,
     batch_size: Annotated[int, typer.Option(min=1, max=4096)] = 32,
     learning_rate: Annotated[float, typer.Option(min=1e-7, max=1.0)] = 3e-3,
+    warmup_steps: Annotated[int, typer.Option(min=0, help="Steps of linear learning-rate warm-up before the cosine decay; "
+                                              "fewer for a short fine-tune, or it never decays.")] = 200,
     seed: Annotated[int, typer.Option(min=0)] = 0,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "auto",
     loader_workers: Annotated[int, typer.Option(min=0, max=64, help="Data-loading processes.")] = 1,
@@ -174,7 +176,7 @@ def train(
         raise UserError(f"training needs the train extra: pip install 'renderloop[train]' ({error.name} is missing)") from None
     if device not in ("auto", "cpu", "cuda"):
         raise UserError(f"--device {device}: choose from auto, cpu, cuda")
-    settings = TrainSettings(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate, seed=seed)
+    settings = TrainSettings(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate, warmup_steps=warmup_steps, seed=seed)
     record = train_detector(dataset_dirs, out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True), init=init)
     last = record["history"][-1] if record["history"] else {}
     typer.echo(f"train: wrote {out} (val mAP@0.5 {last.get('map50', float('nan')):.3f})")
