@@ -1,5 +1,5 @@
-"""Speed of perception: ONNX detector ms per 640x480 frame of peppers (the whole frame alone, and with the
-default 2x2 windows, and with the mirrored frame too), organised point cloud ms per 640x480 frame
+"""Speed of perception: ONNX detector ms per 640x480 frame of peppers (the whole frame alone, with 2x2
+windows, and the default: 2x2 and 3x2 windows and the mirrored frame), organised point cloud ms per 640x480 frame
 (side by side with Open3D's `create_from_depth_image` when Open3D is installed), training
 images per second.
 
@@ -16,6 +16,7 @@ import time
 import numpy as np
 from common import scan_poses, summary
 
+from renderloop.config import DetectorConfig
 from renderloop.perception.detector import Detector
 from renderloop.perception.pointcloud import organised_cloud
 from renderloop.render.camera import Intrinsics
@@ -123,12 +124,13 @@ def main() -> None:
     rng = np.random.default_rng(0)
     intrinsics = Intrinsics(640, 480, 589.4, 589.4, 319.5, 239.5)
     frame = pepper_frame()
-    detector = Detector(threads=2)
+    detector, defaults = Detector(threads=2), DetectorConfig()
     depth = synthetic_depth(intrinsics, rng)
     figures = {
-        "detector_ms_per_frame": summary(timed(lambda: detector.detect(frame, 0.5, grid=1), args.repeats)),
-        "detector_2x2_windows_ms_per_frame": summary(timed(lambda: detector.detect(frame, 0.5, grid=2), args.repeats)),
-        "detector_2x2_mirrored_ms_per_frame": summary(timed(lambda: detector.detect(frame, 0.5, grid=2, mirror=True), args.repeats)),
+        "detector_ms_per_frame": summary(timed(lambda: detector.detect(frame, 0.5), args.repeats)),
+        "detector_2x2_windows_ms_per_frame": summary(timed(lambda: detector.detect(frame, 0.5, [(2, 2)]), args.repeats)),
+        "detector_default_ms_per_frame": summary(timed(lambda: detector.detect(frame, 0.5, defaults.layouts, defaults.mirror),
+                                                       args.repeats)),
         "cloud_ms_per_frame": summary(timed(lambda: organised_cloud(depth, intrinsics), args.repeats)),
     }
     torch_ms, onnx_ms = torch_and_onnx_ms(frame, args.repeats)

@@ -48,7 +48,7 @@ def main() -> None:
             for pose in chosen:
                 frame = renderer.render(pose)
                 seconds.append(frame.timings["total"])
-                score.add([d.to_json() for d in detector.detect(frame.rgb, config.detector.score_threshold, config.detector.grid,
+                score.add([d.to_json() for d in detector.detect(frame.rgb, config.detector.score_threshold, config.detector.layouts,
                                                                    config.detector.mirror)], frame.mask)
         results[samples] = {"s_per_frame": summary(seconds[1:] or seconds), **score.summary()}  # the first frame syncs the scene
     best = results[max(args.samples)]["ripe_recall"] or 0.0

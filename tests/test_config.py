@@ -40,6 +40,15 @@ def test_resolved_config_round_trips_through_yaml(tmp_path: Path):
     assert load_resolved(path) == config
 
 
+
+def test_a_run_written_before_window_layouts_reads_its_grid_as_square_windows(tmp_path: Path):
+    path = tmp_path / "config.yaml"
+    text = load_config("paper").to_yaml()
+    assert "windows: [2x2, 3x2]" in text
+    for grid, windows in (("2", ("2x2",)), ("1", ())):
+        path.write_text(text.replace("windows: [2x2, 3x2]", f"grid: {grid}"))
+        assert load_resolved(path).detector.windows == windows
+
 @pytest.mark.parametrize(
     ("yaml_text", "message"),
     [
@@ -51,6 +60,7 @@ def test_resolved_config_round_trips_through_yaml(tmp_path: Path):
         ("planner:\n  velocity_limits: [1, 1, 1, 1, 1, 1, 0]\n", "planner.velocity_limits"),
         ("camera:\n  clip: [5, 1]\n", "camera: clip: near must be smaller than far"),
         ("robot:\n  mass: .nan\n", "robot.mass"),
+        ("detector:\n  windows: [2x2, 3x9]\n", "detector.windows.1"),
         ("- just\n- a list\n", "expected a mapping"),
         ("greenhouse: [unclosed\n", "not valid YAML"),
     ],

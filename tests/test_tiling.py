@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 from renderloop.perception.detector import Detection, Detector
-from renderloop.perception.tiling import cut_by_window, windows
+from renderloop.errors import UserError
+from renderloop.perception.tiling import cut_by_window, parse_layouts, windows
 
 
 def test_a_paper_frame_gets_four_overlapping_windows_on_its_corners() -> None:
-    parts = windows(640, 480, 2, 320)
+    parts = windows(640, 480, 2, 2, 320)
     assert parts == [(0, 0, 352, 264), (288, 0, 640, 264), (0, 216, 352, 480), (288, 216, 640, 480)]
     covered = np.zeros((480, 640), dtype=bool)
     for x0, y0, x1, y1 in parts:
@@ -18,18 +19,36 @@ def test_a_paper_frame_gets_four_overlapping_windows_on_its_corners() -> None:
     assert covered.all()
 
 
-@pytest.mark.parametrize("grid", [2, 3, 5])
-def test_windows_cover_the_frame_with_shared_strips(grid: int) -> None:
-    parts = windows(4000, 3000, grid, 320)
-    assert len(parts) == grid * grid
-    xs = sorted({(x0, x1) for x0, _, x1, _ in parts})
-    assert xs[0][0] == 0 and xs[-1][1] == 4000
-    assert all(right[0] < left[1] for left, right in itertools.pairwise(xs))  # neighbours overlap
+@pytest.mark.parametrize(("columns", "rows"), [(2, 2), (3, 2), (5, 5), (1, 3)])
+def test_windows_cover_the_frame_with_shared_strips(columns: int, rows: int) -> None:
+    parts = windows(4000, 3000, columns, rows, 320)
+    assert len(parts) == columns * rows
+    covered = np.zeros((300, 400), dtype=bool)  # the frame at a tenth
+    for x0, y0, x1, y1 in parts:
+        covered[y0 // 10:y1 // 10, x0 // 10:x1 // 10] = True
+    assert covered.all()
+    for edges in ({(x0, x1) for x0, _, x1, _ in parts}, {(y0, y1) for _, y0, _, y1 in parts}):
+        assert all(right[0] < left[1] for left, right in itertools.pairwise(sorted(edges)))  # neighbours overlap
 
 
-def test_no_windows_for_one_cell_or_when_they_would_only_be_upscaled() -> None:
-    assert windows(640, 480, 1, 320) == []
-    assert windows(400, 300, 2, 320) == []  # a 220 px window would be blown up to the 320 px input
+def test_a_paper_frame_gets_3x2_windows_but_not_the_blurred_3x3_ones() -> None:
+    parts = windows(640, 480, 3, 2, 320)
+    assert {(x1 - x0, y1 - y0) for x0, y0, x1, y1 in parts} == {(235, 264)}  # enlarged 1.36 and 1.21 times
+    assert [x0 for x0, _, _, _ in parts[:3]] == [0, 202, 405]
+    assert windows(640, 480, 3, 3, 320) == []  # 176 px high: enlarged 1.82 times
+
+
+def test_no_windows_for_one_cell_or_when_they_would_only_be_blurred() -> None:
+    assert windows(640, 480, 1, 1, 320) == []
+    assert windows(320, 240, 2, 2, 320) == []  # the demo's frames: 176x132 windows, enlarged 2.4 times
+
+
+def test_window_layouts_parse_and_bad_ones_are_refused() -> None:
+    assert parse_layouts("2x2, 3x2") == [(2, 2), (3, 2)]
+    assert parse_layouts("None") == []
+    for text in ("2", "2x9", "3x2,", "axb", ""):
+        with pytest.raises(UserError, match="--windows"):
+            parse_layouts(text)
 
 
 def test_a_box_on_an_inner_window_edge_is_cut_and_one_on_the_frame_border_is_not() -> None:
@@ -64,7 +83,7 @@ def test_windows_add_small_fruit_drop_cut_boxes_and_fuse_what_two_passes_saw() -
              Detection((212.0, 184.0, 252.0, 224.0), 0.4, "ripe")],  # the whole frame's 0.3 box: together 0.58
         ],
     })
-    found = network.detect(np.zeros((480, 640, 3), dtype=np.uint8), 0.5, grid=2)
+    found = network.detect(np.zeros((480, 640, 3), dtype=np.uint8), 0.5, [(2, 2)])
     assert [(d.bbox, round(d.score, 6), d.label) for d in found] == [
         ((100.0, 100.0, 160.0, 170.0), 0.97, "ripe"),  # 1 - (1 - 0.9)(1 - 0.7)
         ((30.0, 40.0, 44.0, 56.0), 0.6, "ripe"),
@@ -73,10 +92,10 @@ def test_windows_add_small_fruit_drop_cut_boxes_and_fuse_what_two_passes_saw() -
     ]
 
 
-def test_grid_one_is_the_whole_frame_alone() -> None:
+def test_no_layouts_is_the_whole_frame_alone() -> None:
     whole = [Detection((1.0, 2.0, 30.0, 40.0), 0.9, "ripe")]
     network = ScriptedNetwork({(480, 640): [whole]})
-    assert network.detect(np.zeros((480, 640, 3), dtype=np.uint8), 0.5, grid=1) == whole
+    assert network.detect(np.zeros((480, 640, 3), dtype=np.uint8), 0.5, []) == whole
 
 
 class BrightPatchNetwork(Detector):
@@ -94,11 +113,11 @@ class BrightPatchNetwork(Detector):
         return [Detection((float(cols.min()), float(rows.min()), float(cols.max() + 1), float(rows.max() + 1)), 0.5, "ripe")]
 
 
-@pytest.mark.parametrize(("grid", "passes", "passes_holding_the_patch"), [(1, 2, 2), (2, 6, 3)])
-def test_the_mirrored_pass_comes_back_unmirrored_and_fuses(grid: int, passes: int, passes_holding_the_patch: int) -> None:
+@pytest.mark.parametrize(("layouts", "passes", "passes_holding_the_patch"), [([], 2, 2), ([(2, 2)], 6, 3), ([(2, 2), (3, 2)], 12, 4)])
+def test_the_mirrored_pass_comes_back_unmirrored_and_fuses(layouts: list, passes: int, passes_holding_the_patch: int) -> None:
     frame = np.zeros((480, 640, 3), dtype=np.uint8)
     frame[60:100, 100:141] = 255  # off-centre: a box left un-mirrored would land at x 499-540
     network = BrightPatchNetwork()
-    found = network.detect(frame, 0.5, grid=grid, mirror=True)
+    found = network.detect(frame, 0.5, layouts, mirror=True)
     assert network.passes == passes
     assert [(d.bbox, d.score) for d in found] == [((100.0, 60.0, 141.0, 100.0), pytest.approx(1 - 0.5 ** passes_holding_the_patch))]

@@ -33,6 +33,7 @@ from renderloop.io.atomic import final_path
 from renderloop.io.rundir import read_config
 from renderloop.perception.photos import detect_photos
 from renderloop.perception.stage import run_detect
+from renderloop.perception.tiling import parse_layouts
 from renderloop.pipeline import run_pipeline
 from renderloop.planning.stage import run_plan
 from renderloop.render.stage import run_render
@@ -188,9 +189,9 @@ def detect(
     images: Annotated[Path | None, typer.Option(help="Detect on this folder of photos instead (PNG/JPEG, no depth).")] = None,
     out: Annotated[Path | None, typer.Option(help="With --images: the JSON file to write.")] = None,
     model: Annotated[Path | None, typer.Option(help="ONNX model; default: the config's, else the shipped one.")] = None,
-    threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help="Score threshold; default: the config's (0.63).")] = None,
-    grid: Annotated[int | None, typer.Option(min=1, max=8, help="Also search grid x grid windows of each image; 1: whole images "
-                                              "only; default: the config's (2).")] = None,
+    threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help="Score threshold; default: the config's (0.71).")] = None,
+    windows: Annotated[str | None, typer.Option(help="Also search the windows of these columns x rows layouts of each image, "
+                                                "e.g. 2x2,3x2; none: whole images only; default: the config's (2x2,3x2).")] = None,
     mirror: Annotated[bool | None, typer.Option("--mirror/--no-mirror", help="Also search each image mirrored; "
                                                 "default: the config's.", show_default=False)] = None,
     force: Force = False,
@@ -201,14 +202,16 @@ def detect(
     if images is not None:
         if out is None:
             raise UserError("--images needs --out FILE.json")
+        defaults = DetectorConfig()
+        layouts = defaults.layouts if windows is None else parse_layouts(windows)
         with _progress_bar("detect") as progress:
-            defaults = DetectorConfig()
             count = detect_photos(images, out, model, defaults.score_threshold if threshold is None else threshold,
-                                  defaults.grid if grid is None else grid, defaults.mirror if mirror is None else mirror, progress)
+                                  layouts, defaults.mirror if mirror is None else mirror, progress)
         typer.echo(f"detect: {count} photos -> {out}")
         return
     config = read_config(run_dir)
-    overrides = {k: v for k, v in {"score_threshold": threshold, "grid": grid, "mirror": mirror}.items() if v is not None}
+    layouts = None if windows is None else [f"{columns}x{rows}" for columns, rows in parse_layouts(windows)]
+    overrides = {k: v for k, v in {"score_threshold": threshold, "windows": layouts, "mirror": mirror}.items() if v is not None}
     config = config.model_copy(update={"detector": config.detector.model_copy(update=overrides)})
     with _progress_bar("detect") as progress:
         made = run_detect(run_dir, config, force or bool(overrides), model, progress)

@@ -9,7 +9,8 @@ redoes it even when no input changed.
 
 `detections.json` (written by `renderloop detect`)::
 
-    {"model": str, "score_threshold": float in [0, 1], "grid": int >= 1 (optional: windows per side searched),
+    {"model": str, "score_threshold": float in [0, 1],
+     "windows": ["2x2", ...] (optional: window layouts searched; older files say "grid": int >= 1, windows per side),
      "mirror": bool (optional: the mirrored frame searched too),
      "depth": str (optional: "depth" or "depth_sensor"),
      "frames": [{"index": int >= 0, "timestamp": float, "image": "rgb/000000.png",
@@ -96,7 +97,8 @@ class Frame(_Strict):
 class Detections(_Strict):
     model: str
     score_threshold: Unit
-    grid: int = Field(1, ge=1)  # windows per side the detector searched besides the whole frame; informational
+    windows: list[str] = []  # window layouts (columns x rows) searched besides the whole frame; informational
+    grid: int | None = Field(None, ge=1)  # what files written before the layouts said instead: windows per side
     mirror: bool = False  # whether the detector also searched the mirrored frame; informational
     depth: str | None = None  # which depth images gave the positions; informational
     frames: list[Frame]

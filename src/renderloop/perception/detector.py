@@ -5,16 +5,17 @@ scores above a floor, the top 300 candidates, class-wise NMS at IoU 0.55, at mos
 300 detections; then the caller's score threshold. Frames of any size are resized
 to the network input with PIL's antialiased bilinear filter (a 640x480 frame then
 looks like the 320 px renders the network was trained on) and boxes are scaled back.
-With `grid` > 1 the frame's overlapping windows are searched as well (`tiling`), with
+With window `layouts` the frame's overlapping windows are searched as well (`tiling`), with
 `mirror` the frame mirrored left to right (a second look at the same pixels that errs
 elsewhere: the network is not exactly symmetric), and what the passes found is merged
-(`fusion`). The windows are not mirrored: for four more passes, that found no more
-fruit at the same rate of false detections on held-out paper seeds (measured with the
-step-6 and step-8 models of MODEL_CARD.md).
+(`fusion`). The windows are not mirrored: mirroring the 2x2 ones, four more passes, found
+no more fruit at the same rate of false detections on held-out paper seeds (measured with
+the step-6 and step-8 models of MODEL_CARD.md).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -25,7 +26,7 @@ from PIL import Image
 from renderloop.errors import UserError
 from renderloop.perception.boxes import nms
 from renderloop.perception.fusion import fuse
-from renderloop.perception.tiling import cut_by_window, windows
+from renderloop.perception.tiling import Layout, all_windows, cut_by_window
 
 CLASSES = ("ripe", "unripe")
 INPUT_SIZE = 320
@@ -111,15 +112,16 @@ class Detector:
         boxes, scores = self.session.run(None, {"images": to_input(rgb)})
         return boxes, scores
 
-    def detect(self, rgb: np.ndarray, score_threshold: float, grid: int = 1, mirror: bool = False) -> list[Detection]:
-        """Detections in the whole frame, with `mirror` in the frame mirrored left to right too, and with `grid` > 1
-        in its grid x grid overlapping windows; the passes merged."""
+    def detect(self, rgb: np.ndarray, score_threshold: float, layouts: Sequence[Layout] = (), mirror: bool = False
+               ) -> list[Detection]:
+        """Detections in the whole frame, with `mirror` in the frame mirrored left to right too, and in the
+        overlapping windows of each (columns, rows) layout; the passes merged."""
         if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
             raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
         height, width = rgb.shape[:2]
         whole = (0, 0, width, height)
         passes = [(whole, False), *([(whole, True)] if mirror else []),
-                  *((window, False) for window in windows(width, height, grid, INPUT_SIZE))]
+                  *((window, False) for window in all_windows(width, height, layouts, INPUT_SIZE))]
         if len(passes) == 1:
             return self._detect_once(rgb, score_threshold)
         floor = min(PASS_FLOOR, score_threshold)

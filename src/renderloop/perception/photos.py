@@ -1,6 +1,6 @@
 """`renderloop detect --images FOLDER --out FILE.json`: the detector on any photos, no depth.
 
-FILE.json: {"model": path, "score_threshold": t, "grid": g, "mirror": m, "complete": bool, "error": str | null,
+FILE.json: {"model": path, "score_threshold": t, "windows": ["2x2", ...], "mirror": m, "complete": bool, "error": str | null,
             "images": {"name.jpg": {"width": w, "height": h, "detections": [{"bbox", "score", "label"}]}}}
 A photo that cannot be read stops the run: the photos before it are written
 (complete: false, with the error) and the command exits with code 2 naming it.
@@ -8,7 +8,7 @@ A photo that cannot be read stops the run: the photos before it are written
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +17,7 @@ from PIL import Image, UnidentifiedImageError
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_json
 from renderloop.perception.detector import Detector
+from renderloop.perception.tiling import Layout
 
 SUFFIXES = {".png", ".jpg", ".jpeg"}
 
@@ -41,20 +42,21 @@ def _read_rgb(path: Path) -> np.ndarray:
         raise UserError(f"{path}: not a readable image") from None
 
 
-def detect_photos(folder: Path, out: Path, model: Path | None, threshold: float, grid: int, mirror: bool,
+def detect_photos(folder: Path, out: Path, model: Path | None, threshold: float, layouts: Sequence[Layout], mirror: bool,
                   progress: Progress | None = None) -> int:
     photos = list_photos(folder)
     if Path(out).is_dir():
         raise UserError(f"--out {out}: is a folder; give a .json file name")
     detector = Detector(model)
     results: dict[str, dict] = {}
-    record = {"model": str(detector.path), "score_threshold": threshold, "grid": grid, "mirror": mirror, "complete": False, "error": None, "images": results}
+    record = {"model": str(detector.path), "score_threshold": threshold, "windows": [f"{columns}x{rows}" for columns, rows in layouts],
+              "mirror": mirror, "complete": False, "error": None, "images": results}
     try:
         for done, path in enumerate(photos):
             if progress:
                 progress(done, len(photos))
             rgb = _read_rgb(path)
-            found = detector.detect(rgb, threshold, grid, mirror)
+            found = detector.detect(rgb, threshold, layouts, mirror)
             results[path.name] = {"width": rgb.shape[1], "height": rgb.shape[0], "detections": [d.to_json() for d in found]}
     except UserError as error:
         record["error"] = str(error)

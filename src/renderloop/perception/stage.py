@@ -1,7 +1,7 @@
 """`renderloop detect DIR`: 2D pepper detections on every frame and their 3D points in the world.
 
 detections.json (UTF-8, SI units):
-    {"model": path, "score_threshold": t, "grid": g, "mirror": m, "depth": "depth_sensor" | "depth",
+    {"model": path, "score_threshold": t, "windows": ["2x2", ...], "mirror": m, "depth": "depth_sensor" | "depth",
      "frames": [{"index": i, "timestamp": s, "image": "rgb/NNNNNN.png",
                  "detections": [{"bbox": [x0, y0, x1, y1], "score": p, "label": "ripe" | "unripe",
                                  "position": [x, y, z] | null}]}]}
@@ -79,7 +79,7 @@ def detect_frame(detector: Detector, run_dir: Path, index: int, timestamp: float
         raise UserError(f"{depth_path}: {depth.shape[1]}x{depth.shape[0]} does not match camera_info.yaml")
     cloud, ripe_pixels = organised_cloud(depth, intrinsics), ripe_coloured(rgb)
     detections = []
-    for detection in detector.detect(rgb, settings.score_threshold, settings.grid, settings.mirror):
+    for detection in detector.detect(rgb, settings.score_threshold, settings.layouts, settings.mirror):
         point = fruit_point(cloud, detection.bbox, intrinsics.fx, ripe_pixels if detection.label == "ripe" else None)
         world = None if point is None else [round(float(v), 5) for v in to_world(point, pose)]
         detections.append({**detection.to_json(), "position": world})
@@ -98,7 +98,7 @@ def run_detect(run_dir: Path, config: Config, force: bool = False, model: Path |
     intrinsics = read_camera_info(run_dir / "camera_info.yaml")
     depth_dir = sensor_depth_dir(run_dir)
     cache = run_dir / CACHE
-    key = f"{detector.path}@{settings.score_threshold}@{settings.grid}@{settings.mirror}@{depth_dir}"
+    key = f"{detector.path}@{settings.score_threshold}@{','.join(settings.windows)}@{settings.mirror}@{depth_dir}"
     frames = [] if force else _read_cache(cache, key)
     with open(cache, "w", encoding="utf-8") as out:  # rewritten from what was valid, then appended to
         out.writelines(json.dumps({"model": key, "frame": frame}) + "\n" for frame in frames)
@@ -113,7 +113,8 @@ def run_detect(run_dir: Path, config: Config, force: bool = False, model: Path |
     if progress:
         progress(len(poses), len(poses))
     write_json(run_dir / "detections.json", {"model": str(detector.path), "score_threshold": settings.score_threshold,
-                                             "grid": settings.grid, "mirror": settings.mirror, "depth": depth_dir, "frames": frames})
+                                             "windows": list(settings.windows), "mirror": settings.mirror, "depth": depth_dir,
+                                             "frames": frames})
     write_json(run_dir / "detection_scores.json", score_run(run_dir, frames))
     draw_detection_sheet(run_dir, frames, run_dir / "detections.png")
     cache.unlink(missing_ok=True)
