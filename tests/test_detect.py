@@ -1,4 +1,5 @@
-"""`renderloop detect`: detections.json of a rendered run (resumable, geometric), and photo folders."""
+"""`renderloop detect`: detections.json of a rendered run (resumable, geometric), and photo folders;
+`renderloop threshold` on rendered runs."""
 
 from __future__ import annotations
 
@@ -12,7 +13,9 @@ import pytest
 from renderloop.errors import UserError
 from renderloop.io.rundir import read_config
 from renderloop.perception.fruit_points import CENTRE_BEHIND_SKIN, MAX_RADIUS
+from renderloop.perception.detector import Detector
 from renderloop.perception.stage import CACHE, run_detect
+from renderloop.perception.threshold import ThresholdScore, choose, score_thresholds, search_run
 from renderloop.perception.training.ssd import export_onnx
 from renderloop.render.camera import read_camera_info
 from renderloop.render.frames import decode_depth, read_png
@@ -132,3 +135,31 @@ def test_photo_folders(rendered: Path, model: Path, tmp_path: Path, monkeypatch,
     junk.write_bytes(b"\x00" * 64)
     code, _, stderr = cli(monkeypatch, capsys, "detect", "--images", str(photos), "--out", str(out), "--model", str(junk))
     assert code == 2 and "junk.onnx: not an ONNX model" in stderr
+
+
+def test_a_threshold_scored_from_one_search_is_what_detect_gives_at_it(rendered: Path, model: Path, tmp_path: Path):
+    run_dir = tmp_path / "run"
+    shutil.copytree(rendered, run_dir)
+    settings = read_config(run_dir).detector
+    searched = search_run(run_dir, Detector(model), settings.layouts, settings.mirror)
+    for threshold in (0.3, 0.5):
+        config = read_config(run_dir)
+        config = config.model_copy(update={"detector": config.detector.model_copy(update={"score_threshold": threshold})})
+        run_detect(run_dir, config, force=True, model=model)
+        truth = json.loads((run_dir / "detection_scores.json").read_text())
+        (score,) = score_thresholds([searched], [threshold])
+        assert score.detections > 0
+        assert (score.found, score.findable, score.false, score.detections) == (
+            truth["ripe_found"], truth["ripe_findable"], truth["false_detections"], truth["detections_scored"])
+
+
+def test_the_chosen_threshold_is_the_lowest_within_the_false_share(rendered: Path, model: Path, monkeypatch, capsys):
+    scores = [ThresholdScore(0.5, 90, 100, 12, 102), ThresholdScore(0.6, 88, 100, 5, 93), ThresholdScore(0.7, 80, 100, 2, 82),
+              ThresholdScore(0.8, 0, 100, 0, 0)]  # nothing left to be false: not a choice
+    assert choose(scores, 0.06).threshold == 0.6 and choose(scores, 0.03).threshold == 0.7 and choose(scores, 0.01) is None
+    code, stdout, _ = cli(monkeypatch, capsys, "threshold", str(rendered), "--model", str(model), "--max-false", "1")
+    assert code == 0 and "threshold: 0.30" in stdout and "<- chosen" in stdout
+    code, _, stderr = cli(monkeypatch, capsys, "threshold", str(rendered), "--model", str(model), "--max-false", "0")
+    assert code == 2 and "no threshold up to 0.95 keeps false detections at or under 0.0%" in stderr
+    code, _, stderr = cli(monkeypatch, capsys, "threshold", str(rendered / "rgb"))
+    assert code == 2 and "missing" in stderr and "Traceback" not in stderr

@@ -31,8 +31,10 @@ from renderloop.evaluation.table import format_table, write_eval
 from renderloop.export.command import export_run
 from renderloop.io.atomic import final_path
 from renderloop.io.rundir import read_config
+from renderloop.perception.detector import Detector
 from renderloop.perception.photos import detect_photos
 from renderloop.perception.stage import run_detect
+from renderloop.perception.threshold import choose, format_scores, score_thresholds, search_run
 from renderloop.perception.tiling import parse_layouts
 from renderloop.pipeline import run_pipeline
 from renderloop.planning.stage import run_plan
@@ -55,6 +57,10 @@ Seed = Annotated[int | None, typer.Option(help="Seed of every random choice (ove
 Out = Annotated[Path, typer.Option(help="Run directory to write into.")]
 Force = Annotated[bool, typer.Option("--force", help="Redo stages whose outputs already exist.")]
 RunDir = Annotated[Path, typer.Argument(help="Run directory made by `renderloop scene`.", show_default=False)]
+Windows = Annotated[str | None, typer.Option(help="Also search the windows of these columns x rows layouts of each image, "
+                                             "e.g. 2x2,3x2; none: whole images only; default: the config's (2x2,3x2).")]
+Mirror = Annotated[bool | None, typer.Option("--mirror/--no-mirror", help="Also search each image mirrored; default: the config's.",
+                                             show_default=False)]
 
 
 def _version(value: bool) -> None:
@@ -190,10 +196,8 @@ def detect(
     out: Annotated[Path | None, typer.Option(help="With --images: the JSON file to write.")] = None,
     model: Annotated[Path | None, typer.Option(help="ONNX model; default: the config's, else the shipped one.")] = None,
     threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help="Score threshold; default: the config's (0.71).")] = None,
-    windows: Annotated[str | None, typer.Option(help="Also search the windows of these columns x rows layouts of each image, "
-                                                "e.g. 2x2,3x2; none: whole images only; default: the config's (2x2,3x2).")] = None,
-    mirror: Annotated[bool | None, typer.Option("--mirror/--no-mirror", help="Also search each image mirrored; "
-                                                "default: the config's.", show_default=False)] = None,
+    windows: Windows = None,
+    mirror: Mirror = None,
     force: Force = False,
 ) -> None:
     """Detect peppers: detections.json (boxes, scores, ripe/unripe, 3D world points) of a run, or of a photo folder."""
@@ -216,6 +220,29 @@ def detect(
     with _progress_bar("detect") as progress:
         made = run_detect(run_dir, config, force or bool(overrides), model, progress)
     typer.echo(f"detect: {'wrote' if made else 'already complete in'} {run_dir}")
+
+
+@app.command(name="threshold")
+def choose_threshold(
+    run_dirs: Annotated[list[Path], typer.Argument(help="Rendered runs the detector never trained on.", show_default=False)],
+    model: Annotated[Path | None, typer.Option(help="ONNX model; default: the shipped one.")] = None,
+    windows: Windows = None,
+    mirror: Mirror = None,
+    max_false: Annotated[float, typer.Option(min=0.0, max=1.0, help="Share of false detections allowed.")] = 0.05,
+) -> None:
+    """Choose the detector's score threshold on rendered runs: the lowest with at most --max-false of its detections false."""
+    defaults = DetectorConfig()
+    layouts = defaults.layouts if windows is None else parse_layouts(windows)
+    detector = Detector(model)
+    with _progress_bar("threshold") as progress:
+        runs = [search_run(run_dir, detector, layouts, defaults.mirror if mirror is None else mirror, progress) for run_dir in run_dirs]
+    scores = score_thresholds(runs)
+    chosen = choose(scores, max_false)
+    typer.echo(format_scores(scores, chosen))
+    if chosen is None:
+        raise UserError(f"no threshold up to {scores[-1].threshold:.2f} keeps false detections at or under {max_false:.1%}")
+    typer.echo(f"threshold: {chosen.threshold:.2f} (recall {chosen.recall:.3f}, {chosen.false_rate:.1%} false); "
+               f"set detector.score_threshold or pass renderloop detect --threshold {chosen.threshold:.2f}")
 
 
 @app.command()

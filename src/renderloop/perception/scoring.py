@@ -72,7 +72,10 @@ class RunScore:
         return cls({p.id: p.ripe for p in scene.peppers}, {p.id: np.asarray(p.center) for p in scene.peppers})
 
     def add(self, detections: list[dict], mask: np.ndarray) -> None:
-        truth = mask_boxes(mask)
+        self.add_boxes(detections, mask_boxes(mask))
+
+    def add_boxes(self, detections: list[dict], truth: dict[int, tuple[int, int, int, int]]) -> None:
+        """`add` with the mask's boxes read already: scoring one frame at many thresholds reads its mask once."""
         matched = match(detections, truth)
         too_small = [box for box in truth.values() if not findable(box)]
         for index, detection in enumerate(detections):

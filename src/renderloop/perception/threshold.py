@@ -1,0 +1,106 @@
+"""`renderloop threshold RUN_DIR...`: the detector's score threshold, chosen on rendered runs it never trained on.
+
+The rule the shipped default was chosen by: the lowest score at which at most `max_false`
+of the scored detections are false (README, Perception). Fused scores run higher the more
+passes search a frame, so a new model, other windows or the mirror turned off each need the
+threshold chosen again. Every frame is searched once, keeping its fused boxes down to
+PASS_FLOOR; a higher threshold only drops boxes, so each candidate is scored on exactly the
+detections `renderloop detect --threshold t` would give, against the masks.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from renderloop.errors import UserError
+from renderloop.io import rundir
+from renderloop.perception.detector import PASS_FLOOR, Detector
+from renderloop.perception.scoring import RunScore, mask_boxes
+from renderloop.perception.stage import INPUTS as DETECT_INPUTS
+from renderloop.perception.tiling import Layout
+from renderloop.render.frames import frame_name, read_png
+from renderloop.render.stage import load_poses
+from renderloop.scene.model import Scene, load_scene
+
+THRESHOLDS = tuple(round(t, 2) for t in np.arange(0.30, 0.96, 0.01))
+
+Progress = Callable[[int, int], None]
+Truth = dict[int, tuple[int, int, int, int]]
+
+
+@dataclass(frozen=True)
+class ThresholdScore:
+    threshold: float
+    found: int  # findable ripe fruit matched
+    findable: int
+    false: int
+    detections: int  # scored detections (boxes on fruit too small to count are ignored)
+
+    @property
+    def recall(self) -> float:
+        return self.found / self.findable if self.findable else 0.0
+
+    @property
+    def false_rate(self) -> float:
+        return self.false / self.detections if self.detections else 0.0
+
+
+@dataclass(frozen=True)
+class SearchedRun:
+    """One run's frames searched at the floor: the detections and the mask's boxes of each frame."""
+    scene: Scene
+    frames: list[tuple[list[dict], Truth]]
+
+
+def search_run(run_dir: Path, detector: Detector, layouts: Sequence[Layout], mirror: bool,
+               progress: Progress | None = None) -> SearchedRun:
+    run_dir = Path(run_dir)
+    rundir.require(run_dir, DETECT_INPUTS, "render")
+    scene = load_scene(run_dir / "scene.json")
+    frames = []
+    count = len(load_poses(run_dir)[0])
+    for index in range(count):
+        if progress:
+            progress(index, count)
+        rgb_path = run_dir / "rgb" / frame_name(index)
+        rgb = read_png(rgb_path, np.uint8)
+        if rgb.ndim != 3 or rgb.shape[2] != 3:
+            raise UserError(f"{rgb_path}: not an RGB image")
+        found = [d.to_json() for d in detector.detect(rgb, PASS_FLOOR, layouts, mirror)]
+        frames.append((found, mask_boxes(read_png(run_dir / "masks" / frame_name(index), np.uint16))))
+    return SearchedRun(scene, frames)
+
+
+def score_thresholds(runs: Sequence[SearchedRun], thresholds: Sequence[float] = THRESHOLDS) -> list[ThresholdScore]:
+    """Recall and false detections of all runs together at each threshold (each at least PASS_FLOOR)."""
+    scores = []
+    for threshold in thresholds:
+        totals = np.zeros(4, dtype=int)
+        for run in runs:
+            score = RunScore.of_scene(run.scene)
+            for detections, truth in run.frames:
+                score.add_boxes([d for d in detections if d["score"] >= threshold], truth)
+            totals += (score.found_ripe, score.findable_ripe, score.false, score.detections)
+        scores.append(ThresholdScore(float(threshold), *(int(v) for v in totals)))
+    return scores
+
+
+def choose(scores: Sequence[ThresholdScore], max_false: float) -> ThresholdScore | None:
+    """The lowest threshold with at most `max_false` false detections, or None when none has so few
+    (a threshold that lets no detection through has none false, but finds nothing either)."""
+    return next((s for s in sorted(scores, key=lambda s: s.threshold) if s.detections and s.false_rate <= max_false), None)
+
+
+def format_scores(scores: Sequence[ThresholdScore], chosen: ThresholdScore | None) -> str:
+    """Every 0.05 of the sweep and the chosen threshold, as a table."""
+    shown = [s for s in scores if round(s.threshold * 100) % 5 == 0 or s == chosen]
+    lines = [f"{'score':>6} {'ripe recall':>12} {'found':>12} {'false':>7} {'false boxes':>12}"]
+    for s in shown:
+        mark = "  <- chosen" if s == chosen else ""
+        lines.append(f"{s.threshold:>6.2f} {s.recall:>12.3f} {f'{s.found}/{s.findable}':>12} {s.false_rate:>7.1%} "
+                     f"{f'{s.false}/{s.detections}':>12}{mark}")
+    return "\n".join(lines)
