@@ -158,7 +158,7 @@ def test_the_chosen_threshold_is_the_lowest_within_the_false_share(rendered: Pat
               ThresholdScore(0.8, 0, 100, 0, 0)]  # nothing left to be false: not a choice
     assert choose(scores, 0.06).threshold == 0.6 and choose(scores, 0.03).threshold == 0.7 and choose(scores, 0.01) is None
     code, stdout, _ = cli(monkeypatch, capsys, "threshold", str(rendered), "--model", str(model), "--max-false", "1")
-    assert code == 0 and "threshold: 0.30" in stdout and "<- chosen" in stdout
+    assert code == 0 and "threshold: 0.10" in stdout and "<- chosen" in stdout
     code, _, stderr = cli(monkeypatch, capsys, "threshold", str(rendered), "--model", str(model), "--max-false", "0")
     assert code == 2 and "no threshold up to 0.95 keeps false detections at or under 0.0%" in stderr
     code, _, stderr = cli(monkeypatch, capsys, "threshold", str(rendered / "rgb"))

@@ -26,7 +26,7 @@ from renderloop.render.frames import frame_name, read_png
 from renderloop.render.stage import load_poses
 from renderloop.scene.model import Scene, load_scene
 
-THRESHOLDS = tuple(round(t, 2) for t in np.arange(0.30, 0.96, 0.01))
+THRESHOLDS = tuple(round(t, 2) for t in np.arange(PASS_FLOOR, 0.96, 0.01))  # below the floor, fused boxes were not kept
 
 Progress = Callable[[int, int], None]
 Truth = dict[int, tuple[int, int, int, int]]
