@@ -5,7 +5,9 @@ of the scored detections are false (README, Perception). Fused scores run higher
 passes search a frame, so a new model, other windows or the mirror turned off each need the
 threshold chosen again. Every frame is searched once, keeping its fused boxes down to
 PASS_FLOOR; a higher threshold only drops boxes, so each candidate is scored on exactly the
-detections `renderloop detect --threshold t` would give, against the masks.
+detections `renderloop detect --threshold t` would give, against the masks. The rule serves
+the detection goal; counting can want fewer false boxes than it allows (on the demo's
+frames it chooses 0.21, where counts are worse than at 0.71: README, Perception).
 """
 
 from __future__ import annotations
