@@ -35,7 +35,7 @@ from renderloop.perception.detector import Detector
 from renderloop.perception.photos import detect_photos
 from renderloop.perception.stage import run_detect
 from renderloop.perception.threshold import choose, format_scores, score_thresholds, search_run
-from renderloop.perception.tiling import parse_layouts
+from renderloop.perception.tiling import layout_names, parse_layouts
 from renderloop.pipeline import run_pipeline
 from renderloop.planning.stage import run_plan
 from renderloop.render.stage import run_render
@@ -214,7 +214,7 @@ def detect(
         typer.echo(f"detect: {count} photos -> {out}")
         return
     config = read_config(run_dir)
-    layouts = None if windows is None else [f"{columns}x{rows}" for columns, rows in parse_layouts(windows)]
+    layouts = None if windows is None else layout_names(parse_layouts(windows))
     overrides = {k: v for k, v in {"score_threshold": threshold, "windows": layouts, "mirror": mirror}.items() if v is not None}
     config = config.model_copy(update={"detector": config.detector.model_copy(update=overrides)})
     with _progress_bar("detect") as progress:

@@ -17,7 +17,7 @@ from PIL import Image, UnidentifiedImageError
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_json
 from renderloop.perception.detector import Detector
-from renderloop.perception.tiling import Layout
+from renderloop.perception.tiling import Layout, layout_names
 
 SUFFIXES = {".png", ".jpg", ".jpeg"}
 
@@ -49,7 +49,7 @@ def detect_photos(folder: Path, out: Path, model: Path | None, threshold: float,
         raise UserError(f"--out {out}: is a folder; give a .json file name")
     detector = Detector(model)
     results: dict[str, dict] = {}
-    record = {"model": str(detector.path), "score_threshold": threshold, "windows": [f"{columns}x{rows}" for columns, rows in layouts],
+    record = {"model": str(detector.path), "score_threshold": threshold, "windows": layout_names(layouts),
               "mirror": mirror, "complete": False, "error": None, "images": results}
     try:
         for done, path in enumerate(photos):

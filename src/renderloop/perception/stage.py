@@ -65,13 +65,18 @@ def _read_cache(path: Path, model: str) -> list[dict]:
     return frames
 
 
+def read_rgb_frame(run_dir: Path, index: int) -> np.ndarray:
+    path = run_dir / "rgb" / frame_name(index)
+    rgb = read_png(path, np.uint8)
+    if rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise UserError(f"{path}: not an RGB image")
+    return rgb
+
+
 def detect_frame(detector: Detector, run_dir: Path, index: int, timestamp: float, pose: np.ndarray,
                  depth_dir: str, settings: DetectorConfig, intrinsics) -> dict:
-    rgb_path = run_dir / "rgb" / frame_name(index)
+    rgb = read_rgb_frame(run_dir, index)
     depth_path = run_dir / depth_dir / frame_name(index)
-    rgb = read_png(rgb_path, np.uint8)
-    if rgb.ndim != 3 or rgb.shape[2] != 3:
-        raise UserError(f"{rgb_path}: not an RGB image")
     depth = decode_depth(read_png(depth_path, np.uint16))
     if depth.shape != rgb.shape[:2]:
         raise UserError(f"{depth_path}: depth is {depth.shape[1]}x{depth.shape[0]} but the RGB frame is {rgb.shape[1]}x{rgb.shape[0]}")

@@ -18,11 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from renderloop.errors import UserError
 from renderloop.io import rundir
 from renderloop.perception.detector import PASS_FLOOR, Detector
 from renderloop.perception.scoring import RunScore, mask_boxes
-from renderloop.perception.stage import INPUTS as DETECT_INPUTS
+from renderloop.perception.stage import INPUTS as DETECT_INPUTS, read_rgb_frame
 from renderloop.perception.tiling import Layout
 from renderloop.render.frames import frame_name, read_png
 from renderloop.render.stage import load_poses
@@ -68,11 +67,7 @@ def search_run(run_dir: Path, detector: Detector, layouts: Sequence[Layout], mir
     for index in range(count):
         if progress:
             progress(index, count)
-        rgb_path = run_dir / "rgb" / frame_name(index)
-        rgb = read_png(rgb_path, np.uint8)
-        if rgb.ndim != 3 or rgb.shape[2] != 3:
-            raise UserError(f"{rgb_path}: not an RGB image")
-        found = [d.to_json() for d in detector.detect(rgb, PASS_FLOOR, layouts, mirror)]
+        found = [d.to_json() for d in detector.detect(read_rgb_frame(run_dir, index), PASS_FLOOR, layouts, mirror)]
         frames.append((found, mask_boxes(read_png(run_dir / "masks" / frame_name(index), np.uint16))))
     return SearchedRun(scene, frames)
 

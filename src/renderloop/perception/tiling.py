@@ -49,6 +49,10 @@ def layout(text: str) -> Layout:
     return int(columns), int(rows)
 
 
+def layout_names(layouts: Sequence[Layout]) -> list[str]:
+    return [f"{columns}x{rows}" for columns, rows in layouts]
+
+
 def windows(width: int, height: int, columns: int, rows: int, input_size: int) -> list[Window]:
     """(x0, y0, x1, y1) of the columns x rows windows, the outer ones on the frame's corners, row by row;
     none for 1x1 or when the network input would enlarge a window more than MAX_ENLARGEMENT times."""
