@@ -18,13 +18,11 @@ from pathlib import Path
 import numpy as np
 from common import summary
 
-from renderloop.io.rundir import read_config
 from renderloop.perception.detector import Detector
 from renderloop.perception.scoring import RunScore
 from renderloop.render.camera import Intrinsics
 from renderloop.render.cycles import CyclesRenderer
-from renderloop.render.stage import load_poses
-from renderloop.scene.model import load_scene
+from renderloop.rundir.files import read_config, read_poses, read_scene
 
 
 def main() -> None:
@@ -36,8 +34,8 @@ def main() -> None:
     args = parser.parse_args()
 
     config = read_config(args.run_dir)
-    scene = load_scene(args.run_dir / "scene.json")
-    _, poses = load_poses(args.run_dir)
+    scene = read_scene(args.run_dir)
+    _, poses = read_poses(args.run_dir)
     chosen = poses[np.linspace(0, len(poses) - 1, args.frames).round().astype(int)]
     detector = Detector()
     results = {}

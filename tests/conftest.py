@@ -60,9 +60,9 @@ def fly_demo_raster(run_dir: Path, rate_hz: float = 0.25) -> Path:
 def complete_run(tmp_path_factory) -> Path:
     """The demo scenario through every stage up to count, raster frames every 4 s: a test copies it before changing it."""
     from renderloop.counting.stage import run_count
-    from renderloop.io.rundir import read_config
     from renderloop.perception.stage import run_detect
     from renderloop.render.stage import run_render
+    from renderloop.rundir.files import read_config
 
     run_dir = fly_demo_raster(tmp_path_factory.mktemp("complete") / "run")
     config = read_config(run_dir)

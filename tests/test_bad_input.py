@@ -29,7 +29,7 @@ from pydantic import BaseModel
 import renderloop
 from renderloop.config import Config, load_config
 from renderloop.errors import UserError
-from renderloop.perception.stage import CACHE
+from renderloop.rundir.names import DETECT_CACHE as CACHE
 
 SRC = Path(renderloop.__file__).parent
 ERROR_PREFIX = "renderloop: error:"

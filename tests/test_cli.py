@@ -7,14 +7,14 @@ from pathlib import Path
 
 import mujoco
 import pytest
+from conftest import cli
 
 from renderloop.config import load_config
 from renderloop.io.atomic import dumps_json
+from renderloop.rundir.ownership import BOOKKEEPING
 from renderloop.scene.generate import generate_scene
 
-from conftest import cli
-
-SCENE_FILES = {"config.yaml", "scene.json", "world.xml", "scene_topview.png"}
+SCENE_FILES = {*BOOKKEEPING, "config.yaml", "scene.json", "world.xml", "scene_topview.png"}  # and our mark and file list
 
 
 
@@ -114,7 +114,7 @@ def test_stages_refuse_missing_or_broken_inputs(monkeypatch, capsys, tmp_path: P
     assert code == 2 and "trajectory.csv: not a numeric table" in stderr and stderr.count("\n") == 1
     assert not (out / "flight.csv").exists()
     code, _, stderr = cli(monkeypatch, capsys, "report", str(out))
-    assert code == 2 and "missing flight_paths.png (run `renderloop fly` first)" in stderr and stderr.count("\n") == 1
+    assert code == 2 and "missing flight_paths.png, tracking_error.png (run `renderloop fly` first)" in stderr and stderr.count("\n") == 1
     assert not (out / "report.html").exists()
 
 
@@ -177,3 +177,12 @@ def test_entry_point_reports_bad_input_without_traceback(tmp_path: Path):
     )
     assert result.returncode == 2
     assert result.stderr.strip() == "renderloop: error: unknown preset 'nope' (choose from: demo, paper)"
+
+
+def test_config_prints_the_resolved_config_and_the_schema_of_every_field(monkeypatch, capsys, tmp_path: Path):
+    code, stdout, _ = cli(monkeypatch, capsys, "config", "--preset", "paper", "--seed", "7")
+    assert code == 0 and load_config("paper", seed=7).to_yaml() == stdout
+    code, stdout, _ = cli(monkeypatch, capsys, "config", "--schema")
+    schema = json.loads(stdout)
+    rate = schema["$defs"]["CameraConfig"]["properties"]["rate_hz"]
+    assert code == 0 and "Hz" in rate["description"] and rate["default"] == 5.0 and "maximum" in rate

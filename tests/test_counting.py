@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import cli
 
 from renderloop.config import Config, CountingConfig, load_config
 from renderloop.counting.assign import (
@@ -36,14 +37,12 @@ from renderloop.counting.harvest import (
     tour_length,
     two_opt,
 )
-from renderloop.counting.stage import read_counts, run_count
+from renderloop.counting.stage import run_count
 from renderloop.errors import UserError
-from renderloop.io import rundir
 from renderloop.io.atomic import dumps_json
 from renderloop.io.tum import write_tum
+from renderloop.rundir.files import read_counts, write_config
 from renderloop.scene.model import Scene
-
-from conftest import cli
 
 FRAMES = 40
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -86,7 +85,8 @@ def detections_document(points: dict[str, np.ndarray], frames: int = FRAMES) -> 
 
 
 def make_run(run_dir: Path, config: Config, scene: Scene, points: dict[str, np.ndarray] | None) -> Path:
-    rundir.write_config(run_dir, config)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    write_config(run_dir, config)
     (run_dir / "scene.json").write_text(dumps_json(scene.model_dump(mode="json")), encoding="utf-8")
     write_tum(run_dir / "groundtruth.txt", np.arange(FRAMES) * 0.5, np.zeros((FRAMES, 3)),
               np.repeat(np.eye(3)[None], FRAMES, axis=0), "synthetic poses")
@@ -195,7 +195,7 @@ def test_every_plant_is_counted_exactly_and_an_undetected_plant_gets_zero(demo, 
     blind = max(ripe_truth, key=ripe_truth.get)  # the plant with most ripe fruit is never detected
     run = make_run(tmp_path / "run", config, scene, synthetic_points(scene, skip_plants=(blind,)))
     assert run_count(run, config)
-    counts = read_counts(run)
+    counts = read_counts(run).model_dump()
     unripe_truth = truth_per_plant(scene, False)
     for plant in counts["plants"]:
         assert plant["truth"] == ripe_truth[plant["id"]]
@@ -352,7 +352,7 @@ def test_cli_counts_a_run_directory_then_skips_and_redoes(monkeypatch, capsys, t
               np.repeat(np.eye(3)[None], FRAMES, axis=0), "synthetic poses")
     code, _, stderr = cli(monkeypatch, capsys, "count", str(out))
     assert code == 2 and stderr.count("\n") == 1
-    assert "no detections.json" in stderr and "renderloop detect" in stderr
+    assert "missing detections.json" in stderr and "renderloop detect" in stderr
 
     (out / "rgb").mkdir()
     for i in range(FRAMES):
@@ -361,7 +361,7 @@ def test_cli_counts_a_run_directory_then_skips_and_redoes(monkeypatch, capsys, t
     code, stdout, _ = cli(monkeypatch, capsys, "count", str(out))
     truth = sum(truth_per_plant(scene, True).values())
     assert code == 0 and "wrote" in stdout and f"ripe: {truth} counted, {truth} true" in stdout
-    counts, harvest = read_counts(out), json.loads((out / "harvest.json").read_text())
+    counts, harvest = read_counts(out).model_dump(), json.loads((out / "harvest.json").read_text())
     assert counts["settings"]["use_layout"] is True and counts["settings"]["seed"] == config.seed
     assert counts["total"]["exact_plants"] == 1.0
     assert harvest["total_expected_ripe"] == truth
@@ -372,7 +372,7 @@ def test_cli_counts_a_run_directory_then_skips_and_redoes(monkeypatch, capsys, t
     assert code == 0 and "already complete" in stdout and (out / "counts.json").stat().st_mtime_ns == stamp
 
     code, stdout, _ = cli(monkeypatch, capsys, "count", str(out), "--no-layout")  # other settings: redone
-    assert code == 0 and "wrote" in stdout and read_counts(out)["settings"]["use_layout"] is False
+    assert code == 0 and "wrote" in stdout and read_counts(out).settings["use_layout"] is False
 
     (out / "detections.json").write_text('{"model": 1}')  # newer input: redone, and refused
     code, _, stderr = cli(monkeypatch, capsys, "count", str(out))

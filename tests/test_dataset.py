@@ -16,6 +16,7 @@ from renderloop.dataset.views import random_view
 from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
 from renderloop.render.raster import RasterRenderer
+from renderloop.rundir.ownership import LEDGER, read_ledger
 
 TINY = DatasetSpec(seed=3, width=64, height=48, views_per_scene=2, samples=(1,), val_every=2)
 
@@ -105,7 +106,8 @@ def test_build_resumes_grows_and_is_reproducible(tmp_path: Path):
     assert build_dataset(grown, 4, TINY) == 2
     assert build_dataset(whole, 4, TINY) == 4
     assert {k: v for k, v in _files(grown / "images").items() if k in first} == first
-    assert _files(grown) == _files(whole)
+    assert _files(grown) == _files(whole) | {LEDGER: _files(grown)[LEDGER]}  # the same files, listed in another order
+    assert sorted(read_ledger(grown)) == sorted(read_ledger(whole))
     train = json.loads((whole / "annotations" / "instances_train.json").read_text())
     val = json.loads((whole / "annotations" / "instances_val.json").read_text())
     assert [i["file_name"] for i in train["images"]] == ["images/000000.jpg", "images/000001.jpg"]

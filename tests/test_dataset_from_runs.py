@@ -13,7 +13,8 @@ from PIL import Image
 from renderloop.dataset.from_runs import dataset_from_runs
 from renderloop.errors import UserError
 from renderloop.perception.scoring import mask_boxes
-from renderloop.render.frames import frame_name, read_png
+from renderloop.render.frames import read_png
+from renderloop.rundir.names import frame_name
 
 
 def test_frames_of_runs_become_a_coco_set_with_the_masks_boxes(complete_run: Path, tmp_path: Path):

@@ -9,19 +9,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import cli, fly_demo_raster, jittered_model
 
 from renderloop.errors import UserError
-from renderloop.io.rundir import read_config
-from renderloop.perception.fruit_points import CENTRE_BEHIND_SKIN, MAX_RADIUS
 from renderloop.perception.detector import Detector
-from renderloop.perception.stage import CACHE, run_detect
+from renderloop.perception.fruit_points import CENTRE_BEHIND_SKIN, MAX_RADIUS
+from renderloop.perception.stage import run_detect, with_detector
 from renderloop.perception.threshold import ThresholdScore, choose, score_thresholds, search_run
 from renderloop.perception.training.ssd import export_onnx
-from renderloop.render.camera import read_camera_info
 from renderloop.render.frames import decode_depth, read_png
-from renderloop.render.stage import load_poses, run_render
-
-from conftest import cli, fly_demo_raster, jittered_model
+from renderloop.render.stage import run_render
+from renderloop.rundir.files import read_camera_info, read_config, read_poses
+from renderloop.rundir.names import DETECT_CACHE as CACHE
 
 
 @pytest.fixture(scope="module")
@@ -46,13 +45,13 @@ def rendered(tmp_path_factory) -> Path:
 def test_detections_hold_every_frame_and_points_lie_in_their_boxes(rendered: Path, model: Path, tmp_path: Path):
     run_dir = tmp_path / "run"
     shutil.copytree(rendered, run_dir)
-    assert run_detect(run_dir, read_config(run_dir), model=model)
+    assert run_detect(run_dir, with_detector(read_config(run_dir), model=model))
     document = json.loads((run_dir / "detections.json").read_text())
-    times, poses = load_poses(run_dir)
+    times, poses = read_poses(run_dir)
     assert [f["index"] for f in document["frames"]] == list(range(len(poses)))
     assert [f["timestamp"] for f in document["frames"]] == pytest.approx(times, abs=1e-6)
     assert document["depth"] == "depth_sensor" and document["score_threshold"] == 0.3
-    intrinsics = read_camera_info(run_dir / "camera_info.yaml")
+    intrinsics = read_camera_info(run_dir)
     placed = 0
     for frame, pose in zip(document["frames"], poses):
         depth = decode_depth(read_png(run_dir / "depth_sensor" / Path(frame["image"]).name, np.uint16))
@@ -80,15 +79,15 @@ def test_a_bad_frame_stops_detection_and_the_rerun_finishes_the_same(rendered: P
     clean, broken = tmp_path / "clean", tmp_path / "broken"
     shutil.copytree(rendered, clean)
     shutil.copytree(rendered, broken)
-    run_detect(clean, read_config(clean), model=model)
+    run_detect(clean, with_detector(read_config(clean), model=model))
     frame = broken / "rgb" / "000002.png"
     good = frame.read_bytes()
     frame.write_bytes(good[:100])
     with pytest.raises(UserError, match="000002.png: not a readable PNG"):
-        run_detect(broken, read_config(broken), model=model)
+        run_detect(broken, with_detector(read_config(broken), model=model))
     assert len((broken / CACHE).read_text().splitlines()) == 2 and not (broken / "detections.json").exists()
     frame.write_bytes(good)
-    run_detect(broken, read_config(broken), model=model)
+    run_detect(broken, with_detector(read_config(broken), model=model))
     assert (broken / "detections.json").read_bytes() == (clean / "detections.json").read_bytes()
 
 
@@ -99,7 +98,7 @@ def test_depth_of_another_size_is_refused(rendered: Path, model: Path, tmp_path:
 
     Image.fromarray(np.zeros((10, 12), np.uint16)).save(run_dir / "depth_sensor" / "000000.png")
     with pytest.raises(UserError, match="000000.png: depth is 12x10 but the RGB frame is 320x240"):
-        run_detect(run_dir, read_config(run_dir), model=model)
+        run_detect(run_dir, with_detector(read_config(run_dir), model=model))
 
 
 def test_photo_folders(rendered: Path, model: Path, tmp_path: Path, monkeypatch, capsys):
@@ -122,6 +121,8 @@ def test_photo_folders(rendered: Path, model: Path, tmp_path: Path, monkeypatch,
 
     (photos / "b.png").write_bytes(b"not a png at all")
     code, _, stderr = cli(monkeypatch, capsys, "detect", "--images", str(photos), "--out", str(out), "--model", str(model))
+    assert code == 2 and "found.json: exists; use --force to replace it" in stderr  # the user's file, or an earlier result
+    code, _, stderr = cli(monkeypatch, capsys, "detect", "--images", str(photos), "--out", str(out), "--model", str(model), "--force")
     errors = [line for line in stderr.splitlines() if line.startswith("renderloop: error")]
     assert code == 2 and len(errors) == 1 and errors[0].endswith("b.png: not a readable image") and "Traceback" not in stderr
     partial = json.loads(out.read_text())
@@ -133,7 +134,8 @@ def test_photo_folders(rendered: Path, model: Path, tmp_path: Path, monkeypatch,
     assert code == 2 and "no PNG or JPEG files" in stderr
     junk = tmp_path / "junk.onnx"
     junk.write_bytes(b"\x00" * 64)
-    code, _, stderr = cli(monkeypatch, capsys, "detect", "--images", str(photos), "--out", str(out), "--model", str(junk))
+    code, _, stderr = cli(monkeypatch, capsys, "detect", "--images", str(photos), "--out", str(tmp_path / "new.json"),
+                          "--model", str(junk))
     assert code == 2 and "junk.onnx: not an ONNX model" in stderr
 
 
@@ -145,7 +147,7 @@ def test_a_threshold_scored_from_one_search_is_what_detect_gives_at_it(rendered:
     for threshold in (0.3, 0.5):
         config = read_config(run_dir)
         config = config.model_copy(update={"detector": config.detector.model_copy(update={"score_threshold": threshold})})
-        run_detect(run_dir, config, force=True, model=model)
+        run_detect(run_dir, with_detector(config, model=model), force=True)
         truth = json.loads((run_dir / "detection_scores.json").read_text())
         (score,) = score_thresholds([searched], [threshold])
         assert score.detections > 0

@@ -13,10 +13,10 @@ from conftest import fly_demo_raster
 from rerun.error_utils import strict_mode
 
 from renderloop.export.rerun_recording import write_rerun
-from renderloop.export.run_contents import read_run
-from renderloop.io.rundir import read_config
 from renderloop.io.tum import read_tum
 from renderloop.render.stage import run_render
+from renderloop.rundir.contents import read_run
+from renderloop.rundir.files import read_config
 from renderloop.scene.model import load_scene
 
 
@@ -40,9 +40,13 @@ def _fake_detections(run_dir: Path) -> dict[int, int]:
         frames.append({"index": index, "timestamp": float(timestamp), "image": f"rgb/{index:06d}.png", "detections": found})
     document = {"model": "fake", "score_threshold": 0.5, "depth": "depth", "frames": frames}
     (run_dir / "detections.json").write_text(json.dumps(document))
-    plants = [{"id": 0, "row": 0, "estimate": 2, "truth": 2, "clusters": [[1.0, 2.0, 1.0], [1.1, 2.0, 1.1]], "unripe_clusters": [[1.0, 2.1, 0.9]]},
-              {"id": 1, "row": 0, "estimate": 1, "truth": 1, "clusters": [[1.0, 3.0, 1.0]], "unripe_clusters": []}]
-    (run_dir / "counts.json").write_text(json.dumps({"plants": plants, "rows": [], "total": {}}))
+    plants = [{"id": 0, "row": 0, "estimate": 2, "truth": 2, "unripe_estimate": 1, "unripe_truth": 1,
+               "clusters": [[1.0, 2.0, 1.0], [1.1, 2.0, 1.1]], "unripe_clusters": [[1.0, 2.1, 0.9]]},
+              {"id": 1, "row": 0, "estimate": 1, "truth": 1, "unripe_estimate": 0, "unripe_truth": 0,
+               "clusters": [[1.0, 3.0, 1.0]], "unripe_clusters": []}]
+    total = {"estimate": 3, "truth": 3, "error_pct": 0.0, "unripe_estimate": 1, "unripe_truth": 1, "exact_plants": 1.0}
+    tally = {"frames": len(frames), "ripe": 0, "unripe": 0, "no_position": 0, "removed": 0, "unripe_removed": 0}
+    (run_dir / "counts.json").write_text(json.dumps({"plants": plants, "rows": [], "total": total, "detections": tally, "settings": {}}))
     return {frame["index"]: len(frame["detections"]) for frame in frames}
 
 

@@ -15,9 +15,8 @@ from scipy.spatial.transform import Rotation
 from renderloop.export.command import export_run
 from renderloop.export.rosbag import LINKS, OPTICAL_FRAME
 from renderloop.perception.pointcloud import organised_cloud
-from renderloop.render.camera import read_camera_info
 from renderloop.render.frames import decode_depth, read_png
-from renderloop.render.stage import load_poses
+from renderloop.rundir.files import read_camera_info, read_poses
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +46,7 @@ def _matrix(transform) -> np.ndarray:
 
 def test_message_counts_match_frames_and_flight_log(bag: dict, run_dir: Path):
     counts = Counter({topic: len(entries) for topic, entries in bag["messages"].items()})
-    frames = len(load_poses(run_dir)[0])
+    frames = len(read_poses(run_dir)[0])
     flight_rows = len((run_dir / "flight.csv").read_text().splitlines()) - 1
     trajectory_rows = len((run_dir / "trajectory.csv").read_text().splitlines()) - 1
     for topic in ("/camera/color/image_raw", "/camera/color/camera_info", "/camera/depth/image_rect_raw",
@@ -61,7 +60,7 @@ def test_message_counts_match_frames_and_flight_log(bag: dict, run_dir: Path):
 
 
 def test_clouds_are_the_perception_stage_cloud_and_images_the_frames(bag: dict, run_dir: Path):
-    intrinsics = read_camera_info(run_dir / "camera_info.yaml")
+    intrinsics = read_camera_info(run_dir)
     depth_dir = "depth_sensor" if (run_dir / "depth_sensor").is_dir() else "depth"
     clouds = bag["messages"]["/camera/depth/color/points"]
     depths = bag["messages"]["/camera/depth/image_rect_raw"]
@@ -85,7 +84,7 @@ def test_clouds_are_the_perception_stage_cloud_and_images_the_frames(bag: dict, 
 
 
 def test_camera_info_is_the_run_camera(bag: dict, run_dir: Path):
-    intrinsics = read_camera_info(run_dir / "camera_info.yaml")
+    intrinsics = read_camera_info(run_dir)
     for topic in ("/camera/color/camera_info", "/camera/depth/camera_info"):
         info = bag["messages"][topic][0][1]
         assert (info.width, info.height) == (intrinsics.width, intrinsics.height)
@@ -99,7 +98,7 @@ def test_tf_at_frame_stamps_composes_to_the_ground_truth_pose(bag: dict, run_dir
     (link_to_camera,) = static[1].transforms
     assert (link_to_camera.header.frame_id, link_to_camera.child_frame_id) == (LINKS[-1], OPTICAL_FRAME)
     tf_at = {stamp: message.transforms for stamp, message in bag["messages"]["/tf"]}
-    times, poses = load_poses(run_dir)
+    times, poses = read_poses(run_dir)
     for stamp, pose in zip(times, poses):
         chain = tf_at[round(stamp * 1e9)]
         assert [(t.header.frame_id, t.child_frame_id) for t in chain] == list(zip(("world", *LINKS[:-1]), LINKS))

@@ -21,8 +21,12 @@ import numpy as np
 import pytest
 import yaml
 
+from renderloop.rundir.ownership import read_ledger
+
 FAST = {"renderer": {"backend": "raster"}, "camera": {"rate_hz": 0.25}}
-VOLATILE = {"timings.json"}  # seconds of each stage: the one file that may differ between two runs
+# Seconds of each stage, and the list of files renderloop wrote (a killed write may leave a name listed whose file
+# never appeared): the files that may differ between two runs.
+VOLATILE = {"timings.json", ".renderloop-files"}
 Trigger = Callable[[Path], bool]
 
 
@@ -83,6 +87,7 @@ def test_a_run_killed_in_any_stage_resumes_to_the_same_files(stage: str, config:
     subprocess.run(_command(config, out), check=True, capture_output=True)
     assert _files(out) == reference
     assert not [p for p in out.rglob("*") if p.name.endswith(".partial") or p.name.startswith(".detections.cache")]
+    assert set(_files(out)) - {".renderloop.json"} <= set(read_ledger(out))  # every file is one renderloop knows it wrote
 
 
 def _restricted(command: list[str]) -> list[str]:

@@ -9,12 +9,11 @@ from scipy.spatial.transform import Rotation
 
 from renderloop.io.csvtable import read_csv
 from renderloop.io.tum import read_tum
-from renderloop.planning.stage import read_waypoints
 from renderloop.planning.waypoints import scan_target
+from renderloop.rundir.files import FLIGHT_HEADER, read_waypoints
 from renderloop.scene.model import load_scene
 from renderloop.scene.world import world_xml
 from renderloop.sim.flight import Flight
-from renderloop.sim.stage import FLIGHT_HEADER
 
 HOVER = np.array([0.0, -1.2, 1.0, 0.0, 0.0, 0.0, 0.0])
 
@@ -89,7 +88,7 @@ def test_scan_frames_look_at_their_plant(paper_run):
     scene = load_scene(run_dir / "scene.json")
     times, positions, rotations = read_tum(run_dir / "groundtruth.txt")
     assert np.allclose(np.diff(times), 1.0 / config.camera.rate_hz)
-    waypoints = read_waypoints(run_dir / "waypoints.csv")
+    waypoints = read_waypoints(run_dir)
     checked = 0
     for before, after in zip(waypoints[:-1], waypoints[1:]):
         if not (before.kind == after.kind == "scan" and before.plant == after.plant):

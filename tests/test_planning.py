@@ -11,10 +11,10 @@ from renderloop.config import PlannerConfig, load_config
 from renderloop.errors import UserError
 from renderloop.io.csvtable import read_csv
 from renderloop.planning.check import check_trajectory
-from renderloop.planning.stage import read_waypoints
 from renderloop.planning.trajectory import HEADER, time_parameterize
 from renderloop.planning.waypoints import plan_waypoints, scan_target
 from renderloop.robot.kinematics import dofs_to_camera_pose, planned_camera_positions
+from renderloop.rundir.files import read_waypoints
 from renderloop.scene.world import world_xml
 
 
@@ -22,7 +22,7 @@ from renderloop.scene.world import world_xml
 def trajectory(paper_run):
     config, run_dir = paper_run
     table = read_csv(run_dir / "trajectory.csv", HEADER)
-    return config, table, read_waypoints(run_dir / "waypoints.csv")
+    return config, table, read_waypoints(run_dir)
 
 
 def test_trajectory_header_and_rate(paper_run):

@@ -14,12 +14,12 @@ from conftest import fly_demo_raster
 
 from renderloop.config import load_config
 from renderloop.errors import UserError
-from renderloop.io.rundir import read_config
-from renderloop.render.camera import Intrinsics, read_camera_info, to_gl_camera
+from renderloop.render.camera import Intrinsics, to_gl_camera
 from renderloop.render.frames import read_frame
 from renderloop.render.raster import RasterRenderer
-from renderloop.render.stage import load_poses, run_render
+from renderloop.render.stage import run_render, with_backend
 from renderloop.robot.kinematics import camera_rotation, homogeneous, look_at
+from renderloop.rundir.files import read_camera_info, read_config, read_poses
 
 
 def wall_depth(intrinsics: Intrinsics, pose: np.ndarray, wall_x: float) -> np.ndarray:
@@ -101,11 +101,11 @@ def _files(run_dir: Path) -> dict[str, bytes]:
 def test_render_writes_the_run_files(flown: Path):
     config = read_config(flown)
     assert run_render(flown, config)
-    times, poses = load_poses(flown)
+    times, poses = read_poses(flown)
     assert len(list((flown / "rgb").iterdir())) == len(poses)
     rgb_index = [line.split() for line in (flown / "rgb.txt").read_text().splitlines() if not line.startswith("#")]
     assert [float(t) for t, _ in rgb_index] == pytest.approx(times) and rgb_index[0][1] == "rgb/000000.png"
-    assert read_camera_info(flown / "camera_info.yaml") == Intrinsics.from_config(config.camera)
+    assert read_camera_info(flown) == Intrinsics.from_config(config.camera)
     frame = read_frame(flown, 3)
     assert frame.rgb.shape == (config.camera.height, config.camera.width, 3)
     assert frame.depth.dtype == np.float32 and frame.mask.dtype == np.uint16
@@ -176,6 +176,18 @@ def test_bad_groundtruth_is_refused(flown: Path, content: str, message: str):
 def test_unknown_backend_and_unanswering_ray(flown: Path):
     config = read_config(flown)
     with pytest.raises(UserError, match="unknown backend 'opengl'"):
-        run_render(flown, config, backend="opengl")
+        with_backend(config, "opengl")
     with pytest.raises(UserError, match="--address 127.0.0.1:1: no Ray cluster answers there"):
         run_render(flown, config, executor="ray", address="127.0.0.1:1")
+
+
+def test_a_render_that_cannot_fit_on_the_disk_is_refused_before_its_first_frame(flown: Path, monkeypatch):
+    import shutil
+
+    from renderloop.render import stage as render_stage
+
+    usage = shutil.disk_usage(flown)
+    monkeypatch.setattr(render_stage.shutil, "disk_usage", lambda _: usage._replace(free=10_000))
+    with pytest.raises(UserError, match=r"frames of 320x240 need up to 0\.\d GB but the disk has 0\.0 GB free"):
+        run_render(flown, read_config(flown))
+    assert not (flown / "rgb").exists() and not (flown / "rgb.txt").exists()

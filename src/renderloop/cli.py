@@ -6,9 +6,10 @@ failure such as a full disk or a read-only directory in one line and exit code 1
 
 from __future__ import annotations
 
+import json
 import sys
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -19,27 +20,29 @@ from typer.exceptions import Abort as TyperAbort
 from typer.exceptions import TyperException
 
 from renderloop import __version__
-from renderloop.config import PRESETS, DetectorConfig, load_config
-from renderloop.counting.stage import read_counts, run_count
+from renderloop.config import PRESETS, DetectorConfig, config_schema, load_config
+from renderloop.counting.stage import run_count, without_layout
 from renderloop.dataset.build import build_dataset
 from renderloop.dataset.from_runs import dataset_from_runs
 from renderloop.dataset.scenes import DatasetSpec
 from renderloop.errors import UserError
 from renderloop.evaluation.runner import evaluate
 from renderloop.evaluation.seeds import parse_seeds
-from renderloop.evaluation.table import format_table, write_eval
+from renderloop.evaluation.table import EVAL_CSV, EVAL_JSON, format_table, write_eval
 from renderloop.export.command import export_run
 from renderloop.io.atomic import final_path
-from renderloop.io.rundir import read_config
 from renderloop.perception.detector import Detector
 from renderloop.perception.photos import detect_photos
-from renderloop.perception.stage import run_detect
+from renderloop.perception.photo_score import OUTPUTS as PHOTO_SCORE_FILES
+from renderloop.perception.photo_score import score_photos, summary
+from renderloop.perception.stage import run_detect, with_detector
 from renderloop.perception.threshold import choose, format_scores, score_thresholds, search_run
 from renderloop.perception.tiling import layout_names, parse_layouts
 from renderloop.pipeline import run_pipeline
 from renderloop.planning.stage import run_plan
-from renderloop.render.stage import run_render
+from renderloop.render.stage import run_render, with_backend
 from renderloop.report.html import write_report
+from renderloop.rundir.files import read_config, read_counts
 from renderloop.scene.stage import run_scene
 from renderloop.sim.stage import run_fly
 
@@ -100,11 +103,19 @@ def fly(run_dir: RunDir, force: Force = False) -> None:
 
 @contextmanager
 def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
-    """A rich bar on stderr; yields the (done, total) callback the stages take."""
-    with Progress(TextColumn(label), BarColumn(), TextColumn("{task.completed}/{task.total}"), TimeRemainingColumn(),
-                  console=Console(stderr=True)) as bar:
-        task = bar.add_task(label, total=None)
-        yield lambda done, total: bar.update(task, completed=done, total=total)
+    """A rich bar on stderr; yields the (done, total) callback the stages take. The bar appears with the first
+    report, so input refused before any work ends in its one line alone."""
+    with ExitStack() as stack:
+        shown: list = []
+
+        def update(done: int, total: int) -> None:
+            if not shown:
+                bar = stack.enter_context(Progress(TextColumn(label), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                                                   TimeRemainingColumn(), console=Console(stderr=True)))
+                shown.extend((bar, bar.add_task(label, total=None)))
+            shown[0].update(shown[1], completed=done, total=total)
+
+        yield update
 
 
 Workers = Annotated[int, typer.Option(min=1, max=256, help="Renderer processes (one scene each).")]
@@ -122,8 +133,9 @@ def render(
     force: Force = False,
 ) -> None:
     """Render RGB, depth (planar, uint16 at 5000 per metre) and pepper instance masks at every pose of groundtruth.txt."""
+    config = with_backend(read_config(run_dir), backend)
     with _progress_bar("render") as progress:
-        made = run_render(run_dir, read_config(run_dir), force, backend, workers, executor, address, progress=progress)
+        made = run_render(run_dir, config, force, progress, workers, executor, address)
     typer.echo(f"render: {'wrote' if made else 'already complete in'} {run_dir}")
 
 
@@ -210,15 +222,14 @@ def detect(
         layouts = defaults.layouts if windows is None else parse_layouts(windows)
         with _progress_bar("detect") as progress:
             count = detect_photos(images, out, model, defaults.score_threshold if threshold is None else threshold,
-                                  layouts, defaults.mirror if mirror is None else mirror, progress)
+                                  layouts, defaults.mirror if mirror is None else mirror, force, progress)
         typer.echo(f"detect: {count} photos -> {out}")
         return
-    config = read_config(run_dir)
     layouts = None if windows is None else layout_names(parse_layouts(windows))
-    overrides = {k: v for k, v in {"score_threshold": threshold, "windows": layouts, "mirror": mirror}.items() if v is not None}
-    config = config.model_copy(update={"detector": config.detector.model_copy(update=overrides)})
-    with _progress_bar("detect") as progress:
-        made = run_detect(run_dir, config, force or bool(overrides), model, progress)
+    overrides = {"model": model, "score_threshold": threshold, "windows": layouts, "mirror": mirror}
+    config = with_detector(read_config(run_dir), **overrides)
+    with _progress_bar("detect") as progress:  # settings given on the command line mean: detect again with them
+        made = run_detect(run_dir, config, force or any(v is not None for v in overrides.values()), progress)
     typer.echo(f"detect: {'wrote' if made else 'already complete in'} {run_dir}")
 
 
@@ -252,17 +263,19 @@ def count(
     force: Force = False,
 ) -> None:
     """Count the fruit per plant and row (OPTICS on detections.json): counts.json, harvest.json, counts/row_<id>.png."""
-    made = run_count(run_dir, read_config(run_dir), force, use_layout=False if no_layout else None)
-    total = read_counts(run_dir)["total"]
-    error = "n/a" if total["error_pct"] is None else f"{total['error_pct']:+.1f} %"
+    config = read_config(run_dir)
+    made = run_count(run_dir, without_layout(config) if no_layout else config, force)
+    total = read_counts(run_dir).total
+    error = "n/a" if total.error_pct is None else f"{total.error_pct:+.1f} %"
     typer.echo(f"count: {'wrote' if made else 'already complete in'} {run_dir} "
-               f"(ripe: {total['estimate']} counted, {total['truth']} true, {error})")
+               f"(ripe: {total.estimate} counted, {total.truth} true, {error})")
 
 
 @app.command()
-def report(run_dir: RunDir, out: Annotated[Path | None, typer.Option(help="HTML file; default: DIR/report.html.")] = None) -> None:
+def report(run_dir: RunDir, out: Annotated[Path | None, typer.Option(help="HTML file; default: DIR/report.html.")] = None,
+           force: Annotated[bool, typer.Option("--force", help="Replace --out if it exists.")] = False) -> None:
     """Write report.html: one self-contained page of the run (config, scene, flight, frames, detections, counts, times)."""
-    typer.echo(f"report: wrote {write_report(run_dir, out)}")
+    typer.echo(f"report: wrote {write_report(run_dir, out, force)}")
 
 
 @app.command(name="eval")
@@ -285,7 +298,7 @@ def evaluate_seeds(
         scenarios = evaluate(base, seed_list, out, workers, executor, address, force, progress)
     write_eval(out, scenarios)
     typer.echo(format_table(scenarios))
-    typer.echo(f"eval: wrote {out / 'eval.csv'} and {out / 'eval.json'}")
+    typer.echo(f"eval: wrote {out / EVAL_CSV} and {out / EVAL_JSON}")
 
 
 @app.command()
@@ -302,10 +315,49 @@ def export(
         raise UserError(f"{run_dir}: exported without {', '.join(missing)}")
 
 
+@app.command(name="score-photos")
+def score_photo_folder(
+    folder: Annotated[Path, typer.Argument(help="Folder of the labelled photos (PNG/JPEG).", show_default=False)],
+    coco: Annotated[Path, typer.Option(help="COCO labels of the photos: images, annotations (bbox: x, y, width, height in pixels), "
+                                       "categories (ripe/unripe or red/yellow/orange/green give per-class scores too).",
+                                       show_default=False)],
+    out: Annotated[Path, typer.Option(help="Folder to write score.json, pr_curve.png and sheet.png into.", show_default=False)],
+    model: Annotated[Path | None, typer.Option(help="ONNX model; default: the shipped one.")] = None,
+    threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help="Score threshold; default: the config's (0.71).")] = None,
+    windows: Windows = None,
+    mirror: Mirror = None,
+    force: Annotated[bool, typer.Option("--force", help="Replace a score that exists in --out.")] = False,
+) -> None:
+    """Score the detector on your labelled photos: recall, precision, F1, AP@0.5 (pycocotools) and the curve over thresholds."""
+    defaults = DetectorConfig()
+    layouts = defaults.layouts if windows is None else parse_layouts(windows)
+    with _progress_bar("score-photos") as progress:
+        record = score_photos(folder, coco, out, model, defaults.score_threshold if threshold is None else threshold,
+                              layouts, defaults.mirror if mirror is None else mirror, force, progress)
+    for line in summary(record):
+        typer.echo(f"score-photos: {line}")
+    typer.echo(f"score-photos: wrote {out} ({', '.join(sorted(PHOTO_SCORE_FILES))})")
+
+
+@app.command(name="config")
+def show_config(
+    preset: Preset = "demo",
+    config: ConfigFile = None,
+    seed: Seed = None,
+    schema: Annotated[bool, typer.Option("--schema", help="Print the JSON schema instead: every field, its unit, default and range.")] = False,
+) -> None:
+    """Print the resolved config (the preset, your YAML over it, the seed) as YAML, or the schema of every field."""
+    if schema:
+        typer.echo(json.dumps(config_schema(), indent=1))
+        return
+    typer.echo(load_config(preset, config, seed).to_yaml(), nl=False)
+
+
 @app.command()
-def run(out: Out, preset: Preset = "demo", config: ConfigFile = None, seed: Seed = None, force: Force = False) -> None:
+def run(out: Out, preset: Preset = "demo", config: ConfigFile = None, seed: Seed = None, force: Force = False,
+        online: Annotated[bool, typer.Option("--online", help="Render and detect while flying (mission.online).")] = False) -> None:
     """Run every stage of the pipeline in order, skipping stages that are already complete."""
-    resolved = load_config(preset, config, seed)
+    resolved = load_config(preset, config, seed, online=online or None)
     seconds = run_pipeline(out, resolved, force, Console(stderr=True))
     typer.echo(f"run: {out} ({sum(seconds.values()):.1f} s)")
 

@@ -19,14 +19,42 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from renderloop.errors import UserError, field_path
 from renderloop.perception.tiling import LAYOUT_PATTERN, Layout, layout
 
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
-PositiveInt = Annotated[int, Field(gt=0, le=1_000_000)]
-NonNegativeInt = Annotated[int, Field(ge=0, le=1_000_000)]
-Vec2 = tuple[FiniteFloat, FiniteFloat]
-Vec3 = tuple[FiniteFloat, FiniteFloat, FiniteFloat]
-PositiveVec3 = tuple[PositiveFloat, PositiveFloat, PositiveFloat]
+
+def Real(low: float, high: float, *, low_open: bool = False, high_open: bool = False) -> Any:
+    """A finite float in [low, high]; `low_open`/`high_open` leave an end out (gt/lt instead of ge/le)."""
+    lower = {"gt": low} if low_open else {"ge": low}
+    upper = {"lt": high} if high_open else {"le": high}
+    return Annotated[float, Field(**lower, **upper, allow_inf_nan=False)]
+
+
+def Count(low: int, high: int) -> Any:
+    """An integer in [low, high]."""
+    return Annotated[int, Field(ge=low, le=high)]
+
+
+# Building blocks of the fields below. Every field is bounded above and below: the bounds let every real
+# greenhouse and robot through and stop a typo (a missing decimal point, a unit off by 1000) before it
+# costs a long run or crashes a stage later.
+Fraction = Real(0.0, 1.0)
+Angle = Real(-math.pi, math.pi)  # rad
+Coordinate = Real(-100.0, 100.0)  # m: half the largest room side
+Position2 = tuple[Coordinate, Coordinate]
+Gain = Real(0.0, 1e5)
+
+MAX_ROOM_SIDE = 200.0  # m
+# The planner routes on a 5 cm occupancy grid of the whole floor: one hectare is 4 M cells, about 2 GB and
+# seconds a transit; a larger floor would exhaust memory before it flew.
+MAX_FLOOR_AREA = 10_000.0  # m²
+MAX_TABLES = 500
+MAX_PLANTS_PER_TABLE = 200
+# Growing a plant takes about 60 ms (paper scene: 32 plants in 1.8 s): 5000 plants are minutes of scene
+# generation, and as many ellipses for the planner, the simulation and the renderer.
+MAX_PLANTS = 5000
+MAX_LEAVES_PER_PLANT = 2000
+# Every leaf is a mesh in scene.json and in Blender: 200 000 leaves are about 40 MB of scene and 9 M vertices.
+MAX_LEAVES = 200_000
+MAX_PIXELS = 8192 * 4096  # 33.5 Mpx, an 8K frame: its float RGB, depth and mask buffers alone are about 0.6 GB
+MAX_CAMERA_RATE_HZ = 100.0
 
 PEPPER_COLORS = ("red", "yellow", "orange", "green")
 RIPE_COLORS = frozenset({"red", "yellow", "orange"})
@@ -41,52 +69,74 @@ def _ordered_range(value: tuple[float, float], name: str) -> None:
         raise ValueError(f"{name}: minimum {value[0]} is larger than maximum {value[1]}")
 
 
+def _inside_room(center: tuple[float, float], size: tuple[float, ...], room: tuple[float, ...]) -> bool:
+    return abs(center[0]) + size[0] / 2 <= room[0] / 2 + 1e-9 and abs(center[1]) + size[1] / 2 <= room[1] / 2 + 1e-9
+
+
+# A table: width (x), length (y), height, m. scene/world.py builds it as a 4 cm slab on 4 cm legs, so at least 0.1 m.
+BoxSize = tuple[Real(0.1, 20.0), Real(0.1, MAX_ROOM_SIDE), Real(0.1, 5.0)]
+
+
 class GreenhouseConfig(Strict):
     """Room, tables (one row of plants each) and the manipulator workstation."""
 
-    size: PositiveVec3 = (12.0, 10.0, 3.5)
-    tables: list[Vec2] = Field(
+    size: tuple[Real(1.0, MAX_ROOM_SIDE), Real(1.0, MAX_ROOM_SIDE), Real(1.0, 50.0)] = Field(
+        (12.0, 10.0, 3.5), description=f"Room length (x), width (y) and height (z), m; the floor at most {MAX_FLOOR_AREA:g} m².")
+    tables: list[Position2] = Field(
         default=[(x, y) for y in (-2.5, 2.5) for x in (-3.0, -1.0, 1.0, 3.0)],
         min_length=1,
-        description="Table centres (x, y); each table is one row of plants along y.",
+        max_length=MAX_TABLES,
+        description="Table centres (x, y), m, the room's centre at the origin; each table is one row of plants along y.",
     )
-    table_size: PositiveVec3 = (0.5, 2.0, 0.6)
-    plants_per_table: PositiveInt = 4
-    plant_spacing: PositiveFloat = 0.5
-    workstation_center: Vec2 = (0.0, 0.0)
-    workstation_size: PositiveVec3 = (0.5, 1.0, 0.6)
+    table_size: BoxSize = Field((0.5, 2.0, 0.6), description="Table width (x), length (y) and height (z), m.")
+    plants_per_table: Count(1, MAX_PLANTS_PER_TABLE) = Field(
+        4, description=f"Plants in the row on each table; all tables together hold at most {MAX_PLANTS}.")
+    plant_spacing: Real(0.05, 10.0) = Field(0.5, description="Distance between neighbouring plants along a table, m.")
+    workstation_center: Position2 = Field((0.0, 0.0), description="Centre (x, y) of the manipulator workstation, m.")
+    workstation_size: BoxSize = Field((0.5, 1.0, 0.6), description="Workstation table width (x), length (y) and height (z), m.")
 
     @model_validator(mode="after")
     def _tables_fit(self) -> GreenhouseConfig:
+        if self.size[0] * self.size[1] > MAX_FLOOR_AREA:
+            raise ValueError(f"size: a {self.size[0]:g} x {self.size[1]:g} m floor is larger than {MAX_FLOOR_AREA:g} m²")
+        total = len(self.tables) * self.plants_per_table
+        if total > MAX_PLANTS:
+            raise ValueError(f"plants_per_table: {len(self.tables)} tables of {self.plants_per_table} plants are more than {MAX_PLANTS} plants")
         length = self.table_size[1]
         if (self.plants_per_table - 1) * self.plant_spacing > length + 1e-9:
             raise ValueError(
                 f"plants_per_table: {self.plants_per_table} plants {self.plant_spacing} m apart "
                 f"do not fit on a {length} m table"
             )
-        half_room = (self.size[0] / 2, self.size[1] / 2)
         for x, y in self.tables:
-            if abs(x) + self.table_size[0] / 2 > half_room[0] or abs(y) + length / 2 > half_room[1]:
+            if not _inside_room((x, y), self.table_size, self.size):
                 raise ValueError(f"tables: table at ({x}, {y}) lies outside the {self.size[0]} x {self.size[1]} m room")
+        if not _inside_room(self.workstation_center, self.workstation_size, self.size):
+            raise ValueError(f"workstation_center: the workstation at {tuple(self.workstation_center)} lies outside the "
+                             f"{self.size[0]} x {self.size[1]} m room")
         return self
 
 
 class PotConfig(Strict):
-    radius_top: PositiveFloat = 0.1
-    radius_bottom: PositiveFloat = 0.075
-    height: PositiveFloat = 0.18
+    radius_top: Real(0.01, 1.0) = Field(0.1, description="Pot radius at the rim, m.")
+    radius_bottom: Real(0.01, 1.0) = Field(0.075, description="Pot radius at the base, m.")
+    height: Real(0.01, 2.0) = Field(0.18, description="Pot height; the canopy starts at its rim, m.")
 
 
 class PepperConfig(Strict):
     """Sweet peppers: blocky lobed fruit about 7-10 cm long."""
 
-    per_side: tuple[PositiveInt, PositiveInt] = (1, 5)
-    length: tuple[PositiveFloat, PositiveFloat] = (0.07, 0.10)
-    width_ratio: tuple[PositiveFloat, PositiveFloat] = (0.8, 1.0)
-    lobes: tuple[Literal[3, 4], Literal[3, 4]] = (3, 4)
-    lobe_depth: tuple[NonNegativeFloat, NonNegativeFloat] = (0.05, 0.14)
-    max_tilt: NonNegativeFloat = Field(0.35, le=math.pi / 2, description="Hanging axis tilt from vertical, rad.")
-    colors: dict[Literal["red", "yellow", "orange", "green"], NonNegativeFloat] = Field(
+    # Up to 100: a 3 m canopy holds that many small fruit; whether they fit is the scene stage's check (a UserError).
+    per_side: tuple[Count(1, 100), Count(1, 100)] = Field(
+        (1, 5), description="Fewest and most fruit on each side (facing -x, +x) of a bearing plant.")
+    length: tuple[Real(0.01, 0.5), Real(0.01, 0.5)] = Field((0.07, 0.10), description="Fruit length range, m.")
+    width_ratio: tuple[Real(0.1, 3.0), Real(0.1, 3.0)] = Field((0.8, 1.0), description="Fruit width over its length, range.")
+    lobes: tuple[Literal[3, 4], Literal[3, 4]] = Field((3, 4), description="Range of the number of lobes, 3 or 4.")
+    # scene/meshes.pepper refuses lobe_depth >= 0.5 (a ValueError in the scene stage otherwise).
+    lobe_depth: tuple[Real(0.0, 0.5, high_open=True), Real(0.0, 0.5, high_open=True)] = Field(
+        (0.05, 0.14), description="Range of the lobes' depth as a fraction of the fruit's radius.")
+    max_tilt: Real(0.0, math.pi / 2) = Field(0.35, description="Hanging axis tilt from vertical, rad.")
+    colors: dict[Literal["red", "yellow", "orange", "green"], Real(0.0, 1e6)] = Field(
         default={"red": 1.0}, description="Relative weight of each colour class; green is unripe."
     )
 
@@ -102,17 +152,22 @@ class PepperConfig(Strict):
 class PlantConfig(Strict):
     """Procedural pepper plants: stem, branches, leaves, flowers, fruit, pot."""
 
-    bearing: PositiveInt | None = Field(20, description="Plants bearing fruit; null means every plant.")
-    volume: PositiveVec3 = Field((0.44, 0.44, 0.5), description="Canopy box above the pot (x, y, z), m.")
-    stem_radius: PositiveFloat = 0.006
-    branches: tuple[PositiveInt, PositiveInt] = (2, 4)
-    leaves: tuple[PositiveInt, PositiveInt] = (30, 55)
-    leaf_length: tuple[PositiveFloat, PositiveFloat] = (0.07, 0.14)
-    leaf_width_ratio: tuple[PositiveFloat, PositiveFloat] = (0.4, 0.6)
-    leaf_curvature: tuple[NonNegativeFloat, NonNegativeFloat] = (0.0, 12.0)
-    flowers: tuple[NonNegativeInt, NonNegativeInt] = (1, 5)
-    pot: PotConfig = PotConfig()
-    peppers: PepperConfig = PepperConfig()
+    bearing: Count(1, MAX_PLANTS) | None = Field(20, description="Plants bearing fruit; null means every plant.")
+    # Greenhouse peppers are trained up to 3-4 m.
+    volume: tuple[Real(0.05, 3.0), Real(0.05, 3.0), Real(0.05, 5.0)] = Field(
+        (0.44, 0.44, 0.5), description="Canopy box above the pot (x, y, z), m.")
+    stem_radius: Real(0.001, 0.1) = Field(0.006, description="Main stem radius, m; branches are 0.6 of it.")
+    branches: tuple[Count(1, 100), Count(1, 100)] = Field((2, 4), description="Fewest and most branches of a plant.")
+    leaves: tuple[Count(1, MAX_LEAVES_PER_PLANT), Count(1, MAX_LEAVES_PER_PLANT)] = Field(
+        (30, 55), description=f"Fewest and most leaves of a plant; the greenhouse's plants together at most {MAX_LEAVES}.")
+    leaf_length: tuple[Real(0.005, 1.0), Real(0.005, 1.0)] = Field((0.07, 0.14), description="Leaf blade length range, m.")
+    leaf_width_ratio: tuple[Real(0.05, 2.0), Real(0.05, 2.0)] = Field(
+        (0.4, 0.6), description="Leaf blade width over its length, range.")
+    leaf_curvature: tuple[Real(0.0, 100.0), Real(0.0, 100.0)] = Field(
+        (0.0, 12.0), description="Range of the midrib's bend, 1/m (12: a 14 cm leaf bends through about 1 rad).")
+    flowers: tuple[Count(0, 200), Count(0, 200)] = Field((1, 5), description="Fewest and most flowers of a plant.")
+    pot: PotConfig = Field(PotConfig(), description="The plant's pot.")
+    peppers: PepperConfig = Field(PepperConfig(), description="The fruit of bearing plants.")
 
     @model_validator(mode="after")
     def _ranges(self) -> PlantConfig:
@@ -124,22 +179,25 @@ class PlantConfig(Strict):
 class RotorConfig(Strict):
     """Rotor thrust F = kf w^2, drag moment M = km F (DESIGN §4)."""
 
-    kf: PositiveFloat = 8.54858e-6
-    km: PositiveFloat = 0.016
-    max_speed: PositiveFloat = 1475.0
-    time_constant: NonNegativeFloat = Field(0.0, description="First-order motor lag, s; 0 means none.")
-    layout: Literal["x", "+"] = "x"
+    kf: Real(1e-9, 1e-2) = Field(8.54858e-6, description="Thrust coefficient kf of F = kf w², N s²/rad².")
+    km: Real(0.0, 1.0, low_open=True) = Field(0.016, description="Drag moment over thrust km of M = km F, m.")
+    max_speed: Real(10.0, 20_000.0) = Field(1475.0, description="Largest rotor speed, rad/s.")
+    time_constant: Real(0.0, 1.0) = Field(0.0, description="First-order motor lag, s; 0 means none.")
+    layout: Literal["x", "+"] = Field("x", description="Quadrotor layout: 'x' (rotors between the axes) or '+' (on them).")
 
 
 class ArmConfig(Strict):
     """3-DoF pitch chain below the body with the RGB-D camera on its tip."""
 
-    mount: Vec3 = Field((0.0, 0.0, -0.08), description="Joint 1 position in the body frame, m.")
-    link_lengths: PositiveVec3 = (0.12, 0.14, 0.3)
-    link_masses: PositiveVec3 = (0.05, 0.05, 0.12)
-    joint_limits: tuple[FiniteFloat, FiniteFloat] = (-1.6, 1.6)
-    nominal_posture: Vec2 = Field((0.0, 0.0), description="q1, q2 that inverse kinematics keeps; q3 sets the pitch.")
-    max_torque: PositiveFloat = Field(2.0, description="Joint motor torque limit, N m.")
+    mount: tuple[Real(-1.0, 1.0), Real(-1.0, 1.0), Real(-1.0, 1.0)] = Field(
+        (0.0, 0.0, -0.08), description="Joint 1 position in the body frame, m.")
+    link_lengths: tuple[Real(0.01, 2.0), Real(0.01, 2.0), Real(0.01, 2.0)] = Field(
+        (0.12, 0.14, 0.3), description="Length of links 1, 2 and 3 (the last carries the camera), m.")
+    link_masses: tuple[Real(0.001, 10.0), Real(0.001, 10.0), Real(0.001, 10.0)] = Field(
+        (0.05, 0.05, 0.12), description="Mass of links 1, 2 and 3, kg.")
+    joint_limits: tuple[Angle, Angle] = Field((-1.6, 1.6), description="Lower and upper limit of every joint, rad.")
+    nominal_posture: tuple[Angle, Angle] = Field((0.0, 0.0), description="q1, q2 that inverse kinematics keeps, rad; q3 sets the pitch.")
+    max_torque: Real(0.01, 1000.0) = Field(2.0, description="Joint motor torque limit, N m.")
 
     @model_validator(mode="after")
     def _limits(self) -> ArmConfig:
@@ -148,27 +206,41 @@ class ArmConfig(Strict):
 
 
 class RobotConfig(Strict):
-    mass: PositiveFloat = Field(2.083, description="UAV body mass without the arm, kg.")
-    inertia: PositiveVec3 = (0.0827, 0.0827, 0.0104)
-    arm_length: PositiveFloat = Field(0.314, description="Body centre to rotor axis, m.")
-    prop_radius: PositiveFloat = 0.12
-    leg_length: PositiveFloat = Field(0.2, description="Landing legs below the body centre, m.")
-    rotor: RotorConfig = RotorConfig()
-    arm: ArmConfig = ArmConfig()
-    home: Vec3 = Field((0.0, -1.2, 0.0), description="Take-off point on the floor, m.")
+    mass: Real(0.05, 100.0) = Field(2.083, description="UAV body mass without the arm, kg.")
+    inertia: tuple[Real(1e-6, 100.0), Real(1e-6, 100.0), Real(1e-6, 100.0)] = Field(
+        (0.0827, 0.0827, 0.0104), description="Body principal moments of inertia (x, y, z), kg m².")
+    arm_length: Real(0.02, 5.0) = Field(0.314, description="Body centre to rotor axis, m.")
+    prop_radius: Real(0.01, 2.0) = Field(0.12, description="Propeller radius, m.")
+    leg_length: Real(0.01, 2.0) = Field(0.2, description="Landing legs below the body centre, m.")
+    rotor: RotorConfig = Field(RotorConfig(), description="The four rotors.")
+    arm: ArmConfig = Field(ArmConfig(), description="The camera arm.")
+    home: tuple[Coordinate, Coordinate, Real(0.0, 50.0)] = Field((0.0, -1.2, 0.0), description="Take-off point on the floor, m.")
+
+    @model_validator(mode="after")
+    def _physical_inertia(self) -> RobotConfig:
+        # No rigid body has a principal moment larger than the other two together; MuJoCo refuses one.
+        a, b, c = self.inertia
+        if a > b + c or b > a + c or c > a + b:
+            raise ValueError(f"inertia: no rigid body has principal moments {list(self.inertia)}: "
+                             "each must be at most the sum of the other two")
+        return self
 
 
 class CameraConfig(Strict):
-    width: PositiveInt = 640
-    height: PositiveInt = 480
-    hfov_deg: float = Field(57.0, gt=1, lt=179)
-    clip: tuple[PositiveFloat, PositiveFloat] = (0.2, 5.0)
-    rate_hz: PositiveFloat = 5.0
+    width: Count(16, 8192) = Field(640, description=f"Image width, px; width x height at most {MAX_PIXELS} px.")
+    height: Count(16, 8192) = Field(480, description="Image height, px.")
+    hfov_deg: Real(1.0, 179.0, low_open=True, high_open=True) = Field(57.0, description="Horizontal field of view, deg.")
+    clip: tuple[Real(0.01, 100.0), Real(0.01, 100.0)] = Field(
+        (0.2, 5.0), description="Near and far clipping distance (the depth range), m.")
+    rate_hz: Real(0.001, MAX_CAMERA_RATE_HZ) = Field(
+        5.0, description="Camera frame rate along the trajectory, Hz; at most controller.rate_hz.")
 
     @model_validator(mode="after")
     def _clip(self) -> CameraConfig:
         if self.clip[0] >= self.clip[1]:
             raise ValueError("clip: near must be smaller than far")
+        if self.width * self.height > MAX_PIXELS:
+            raise ValueError(f"width: a {self.width} x {self.height} px image is more than {MAX_PIXELS} px")
         return self
 
     @property
@@ -179,23 +251,27 @@ class CameraConfig(Strict):
 class PlannerConfig(Strict):
     """Elliptical scan waypoints and TOPP-RA limits for q* = (x, y, z, yaw, q1, q2, q3)."""
 
-    distance: PositiveFloat = 1.0
-    semi_axes: tuple[PositiveFloat, PositiveFloat] = (0.125, 0.25)
-    points_per_ellipse: PositiveInt = 10
-    max_camera_pitch: NonNegativeFloat = Field(0.6, le=1.5, description="rad; 0.6 lets the camera aim at the centroid from the ellipse top.")
-    velocity_limits: tuple[PositiveFloat, ...] = Field((1.5, 1.5, 0.5, 0.3, 1.0, 1.0, 1.0), min_length=7, max_length=7)
-    acceleration_limits: tuple[PositiveFloat, ...] = Field(
-        (0.6, 0.6, 0.4, 0.3, 1.2, 1.2, 1.2), min_length=7, max_length=7
-    )
-    limit_margin: float = Field(0.98, gt=0, le=1, description="Fraction of each limit given to TOPP-RA.")
-    sample_rate_hz: PositiveFloat = 100.0
+    distance: Real(0.1, 10.0) = Field(1.0, description="Horizontal distance from a plant's axis to the UAV body on its scan ellipse, m.")
+    semi_axes: tuple[Real(0.01, 5.0), Real(0.01, 5.0)] = Field(
+        (0.125, 0.25), description="Half width (along the row) and half height of the camera's scan ellipse, m.")
+    points_per_ellipse: Count(1, 360) = Field(10, description="Scan waypoints on each ellipse.")
+    max_camera_pitch: Real(0.0, 1.5) = Field(0.6, description="Largest camera pitch, rad; 0.6 lets the camera aim at the centroid from the ellipse top.")
+    # Lower limits keep a trajectory (its length over its speed, times sample_rate_hz samples) within memory.
+    velocity_limits: tuple[Real(0.05, 20.0), ...] = Field(
+        (1.5, 1.5, 0.5, 0.3, 1.0, 1.0, 1.0), min_length=7, max_length=7,
+        description="Speed limit of x, y, z (m/s), yaw, q1, q2, q3 (rad/s).")
+    acceleration_limits: tuple[Real(0.05, 50.0), ...] = Field(
+        (0.6, 0.6, 0.4, 0.3, 1.2, 1.2, 1.2), min_length=7, max_length=7,
+        description="Acceleration limit of x, y, z (m/s²), yaw, q1, q2, q3 (rad/s²).")
+    limit_margin: Real(0.1, 1.0) = Field(0.98, description="Fraction of each limit given to TOPP-RA.")
+    sample_rate_hz: Real(1.0, 1000.0) = Field(100.0, description="Rate at which the trajectory is sampled into trajectory.csv, Hz.")
 
 
 class PID(Strict):
-    p: NonNegativeFloat = 0.0
-    i: NonNegativeFloat = 0.0
-    d: NonNegativeFloat = 0.0
-    limit: PositiveFloat | None = None
+    p: Gain = Field(0.0, description="Proportional gain, in the units of its loop (ControllerConfig).")
+    i: Gain = Field(0.0, description="Integral gain, 1/s times the proportional units.")
+    d: Gain = Field(0.0, description="Derivative gain, s times the proportional units.")
+    limit: Real(1e-3, 1e5) | None = Field(None, description="Clamp on the loop's output, in its units; null means none.")
 
 
 class ControllerConfig(Strict):
@@ -209,63 +285,77 @@ class ControllerConfig(Strict):
     joint acceleration through the arm's mass matrix, with gravity compensation.
     """
 
-    rate_hz: PositiveFloat = Field(100.0, ge=50.0)
-    physics_dt: PositiveFloat = Field(0.002, le=0.002)
-    position_xy: PID = PID(p=2.0, limit=3.0)
-    velocity_xy: PID = PID(p=0.5, i=0.1)
-    max_tilt: PositiveFloat = Field(0.6, lt=1.57, description="Largest commanded roll or pitch, rad.")
-    position_z: PID = PID(p=4.0, limit=2.0)
-    velocity_z: PID = PID(p=8.0, i=3.0)
-    attitude: PID = PID(p=7.0)
-    rate: PID = PID(p=25.0, i=3.0)
-    yaw: PID = PID(p=5.0)
-    yaw_rate: PID = PID(p=12.0, i=1.0)
-    joints: PID = PID(p=400.0, i=200.0, d=32.0)
+    rate_hz: Real(50.0, 1000.0) = Field(100.0, description="Control loop rate, Hz; its period is a whole number of physics steps.")
+    physics_dt: Real(1e-4, 0.002) = Field(0.002, description="MuJoCo physics time step, s.")
+    position_xy: PID = Field(PID(p=2.0, limit=3.0), description="Horizontal position loop: m/s per m; limit in m/s.")
+    velocity_xy: PID = Field(PID(p=0.5, i=0.1), description="Horizontal velocity loop: rad of tilt per m/s, times g.")
+    max_tilt: Real(0.0, 1.57, low_open=True, high_open=True) = Field(0.6, description="Largest commanded roll or pitch, rad.")
+    position_z: PID = Field(PID(p=4.0, limit=2.0), description="Vertical position loop: m/s per m; limit in m/s.")
+    velocity_z: PID = Field(PID(p=8.0, i=3.0), description="Vertical velocity loop: m/s² per m/s.")
+    attitude: PID = Field(PID(p=7.0), description="Roll and pitch loop: rad/s per rad.")
+    rate: PID = Field(PID(p=25.0, i=3.0), description="Body rate loop: rad/s² per rad/s, times the inertia.")
+    yaw: PID = Field(PID(p=5.0), description="Yaw loop: rad/s per rad.")
+    yaw_rate: PID = Field(PID(p=12.0, i=1.0), description="Yaw rate loop: rad/s² per rad/s, times the inertia.")
+    joints: PID = Field(PID(p=400.0, i=200.0, d=32.0), description="Arm joint loops: rad/s² per rad, through the mass matrix.")
     compensate_arm_pitch: bool = Field(True, description="Joint 1 cancels the body's pitch, so the camera holds its planned pitch.")
-    position_noise_std: NonNegativeFloat = Field(0.0, description="UWB-like noise on the position fed back, m.")
+    position_noise_std: Real(0.0, 1.0) = Field(0.0, description="UWB-like noise on the position fed back, m.")
+
+    @model_validator(mode="after")
+    def _whole_physics_steps(self) -> ControllerConfig:
+        period = 1.0 / self.rate_hz
+        steps = round(period / self.physics_dt)
+        if steps < 1 or abs(steps * self.physics_dt - period) > 1e-9:
+            raise ValueError(f"rate_hz: the control period 1/{self.rate_hz:g} s must be a whole number of "
+                             f"physics steps of {self.physics_dt:g} s")
+        return self
 
 
 class DepthNoiseConfig(Strict):
-    enabled: bool = True
-    sigma_at_1m: NonNegativeFloat = Field(0.002, description="Depth noise sigma at 1 m; grows with z^2.")
-    edge_dropout: NonNegativeFloat = Field(0.5, le=1)
+    enabled: bool = Field(True, description="Add depth noise and edge dropout to the rendered depth.")
+    sigma_at_1m: Real(0.0, 0.5) = Field(0.002, description="Depth noise sigma at 1 m, m; grows with z^2.")
+    edge_dropout: Fraction = Field(0.5, description="Probability that a depth pixel on an object's edge reads no depth.")
+
+
+# Cycles caps every light-path bounce count at 1024.
+Bounces = Count(0, 1024)
 
 
 class BouncesConfig(Strict):
     """Cycles' light-path limits, for a user trading light transport against time. Samples, not
     bounces, are what a frame costs: 3/1/1/2/2 instead of these saved 6 % at 4 samples on the paper scene."""
 
-    total: NonNegativeInt = 6
-    diffuse: NonNegativeInt = 3
-    glossy: NonNegativeInt = 3
-    transmission: NonNegativeInt = 4
-    transparent: NonNegativeInt = 4
+    total: Bounces = Field(6, description="Most bounces of a light path.")
+    diffuse: Bounces = Field(3, description="Most diffuse bounces.")
+    glossy: Bounces = Field(3, description="Most glossy bounces.")
+    transmission: Bounces = Field(4, description="Most transmission bounces.")
+    transparent: Bounces = Field(4, description="Most transparent bounces.")
 
 
 class RendererConfig(Strict):
-    backend: Literal["cycles", "raster"] = "cycles"
+    backend: Literal["cycles", "raster"] = Field("cycles", description="'cycles': Blender's path tracer; 'raster': MuJoCo's OpenGL renderer, milliseconds a frame, for tests and previews.")
     # chosen by measurement (benchmarks/quality.py, 40 paper frames, 201 findable ripe fruit, shipped detector):
     # ripe recall 0.592 at 1 sample, 0.587 at 2, 0.577 at 4 and 8, 0.582 at 128; false detections 11.2 % at 1,
     # 11.4 % at 128. Denoised, one sample is all the detector needs: 0.94 s a 640x480 frame against 29 s at 128.
-    samples: PositiveInt = 1
-    adaptive_threshold: NonNegativeFloat = 0.05
-    denoise: bool = True
+    samples: Count(1, 65536) = Field(1, description="Cycles path-tracing samples per pixel.")
+    adaptive_threshold: Fraction = Field(0.05, description="Cycles adaptive sampling noise threshold; 0 turns adaptive sampling off.")
+    denoise: bool = Field(True, description="Denoise each frame with OpenImageDenoise.")
     denoise_quality: Literal["fast", "balanced", "high"] = Field(
         "fast", description="OpenImageDenoise effort; 'high' (accurate prefilter) costs about 3 s more per 640x480 frame on 2 cores."
     )
-    bounces: BouncesConfig = BouncesConfig()
-    persistent_data: bool = True
-    threads: int = Field(0, ge=0, le=1024, description="0 means all cores.")
-    depth_noise: DepthNoiseConfig = DepthNoiseConfig()
+    bounces: BouncesConfig = Field(BouncesConfig(), description="Cycles' light-path bounce limits.")
+    persistent_data: bool = Field(True, description="Keep Blender's scene data between frames.")
+    threads: Count(0, 1024) = Field(0, description="Render threads; 0 means all cores.")
+    depth_noise: DepthNoiseConfig = Field(DepthNoiseConfig(), description="Noise model of the depth image.")
 
 
 class DetectorConfig(Strict):
     model: Path | None = Field(None, description="ONNX model; null means the one shipped in the package.")
-    input_size: PositiveInt = 320
-    score_threshold: float = Field(0.71, ge=0, le=1, description="Score a detection needs. Fused scores run higher than "
-                                   "one pass's: 0.71 gave at most 5 % false detections on held-out paper runs (README, Perception).")
+    input_size: Count(64, 2048) = Field(320, description="Side of the square network input, px.")
+    score_threshold: Fraction = Field(0.71, description="Score a detection needs. Fused scores run higher than "
+                                      "one pass's: 0.71 gave at most 5 % false detections on held-out paper runs (README, Perception).")
     windows: tuple[Annotated[str, Field(pattern=f"^{LAYOUT_PATTERN}$")], ...] = Field(
-        ("2x2", "3x2"), description="Also search the overlapping windows of these columns x rows layouts of each frame, "
+        ("2x2", "3x2"), max_length=64,  # the 8 x 8 possible layouts
+        description="Also search the overlapping windows of these columns x rows layouts of each frame, "
         "where small fruit look larger (one network pass a window; perception/tiling.py); []: the whole frame only.")
     mirror: bool = Field(True, description="Also search the frame mirrored left to right, the passes fused: one more "
                          "network pass, for recall at the same rate of false detections (README, Perception).")
@@ -288,44 +378,63 @@ class DetectorConfig(Strict):
 class CountingConfig(Strict):
     """Yield counting (OPTICS on the multi-view fruit points of each row) and the harvest plan."""
 
-    points: PositiveInt = Field(500, ge=2, description="Size of the fixed point set OPTICS clusters per row and class.")
-    eps: PositiveFloat = Field(0.04, description="OPTICS neighbourhood (eps and max_eps), m: about one pepper.")
-    augment_noise_std: NonNegativeFloat = Field(0.01, description="Sigma of the gaussian copies that fill a row up to `points`, m.")
+    points: Count(2, 100_000) = Field(500, description="Size of the fixed point set OPTICS clusters per row and class.")
+    eps: Real(0.001, 1.0) = Field(0.04, description="OPTICS neighbourhood (eps and max_eps), m: about one pepper.")
+    augment_noise_std: Real(0.0, 1.0) = Field(0.01, description="Sigma of the gaussian copies that fill a row up to `points`, m.")
     use_layout: bool = Field(True, description="Assign and filter points by the plant volumes; false: nearest table and LocalOutlierFactor.")
-    expected_per_plant: PositiveInt = Field(
+    expected_per_plant: Count(1, 1000) = Field(
         10, description="Fruit a plant may bear (the paper's 10); informational, the counting itself does not use it."
     )
-    volume_margin: NonNegativeFloat = Field(0.02, description="Growth of each plant's bounding box before points are tested against it, m.")
-    min_views: PositiveInt = Field(2, ge=2, description="Detections a pepper needs; MinPts = min_views * ceil(points / n_init).")
+    volume_margin: Real(0.0, 1.0) = Field(0.02, description="Growth of each plant's bounding box before points are tested against it, m.")
+    min_views: Count(2, 1000) = Field(2, description="Detections a pepper needs; MinPts = min_views * ceil(points / n_init).")
     cluster_method: Literal["dbscan", "xi"] = Field("dbscan", description="OPTICS cluster extraction (scikit-learn).")
-    xi: float = Field(0.05, gt=0, lt=1, description="Steepness for cluster_method 'xi'.")
-    lof_neighbors: PositiveInt = Field(
-        4, ge=2, description="LocalOutlierFactor n_neighbors when use_layout is false; keep it below the fewest views of a fruit."
+    xi: Real(0.0, 1.0, low_open=True, high_open=True) = Field(0.05, description="Steepness for cluster_method 'xi'.")
+    lof_neighbors: Count(2, 1000) = Field(
+        4, description="LocalOutlierFactor n_neighbors when use_layout is false; keep it below the fewest views of a fruit."
     )
-    harvest_min_ripe: PositiveInt = Field(1, description="Ripe fruit a plant must be expected to bear to be brought to the workstation.")
+    harvest_min_ripe: Count(1, 1000) = Field(1, description="Ripe fruit a plant must be expected to bear to be brought to the workstation.")
+
+
+class MissionConfig(Strict):
+    """How the scan is flown."""
+
+    online: bool = Field(False, description="Render and detect while flying (the simulation steps, the camera renders "
+                         "at its instants, perception runs on each frame as it arrives); same files and counts as the "
+                         "batch stages fly, render, detect.")
 
 
 class Config(Strict):
-    seed: int = Field(0, ge=0, lt=2**63)
-    greenhouse: GreenhouseConfig = GreenhouseConfig()
-    plants: PlantConfig = PlantConfig()
-    robot: RobotConfig = RobotConfig()
-    camera: CameraConfig = CameraConfig()
-    planner: PlannerConfig = PlannerConfig()
-    controller: ControllerConfig = ControllerConfig()
-    renderer: RendererConfig = RendererConfig()
-    detector: DetectorConfig = DetectorConfig()
-    counting: CountingConfig = CountingConfig()
+    seed: Count(0, 2**63 - 1) = Field(0, description="Seed of every random draw of the run (scene, noise, sampling).")
+    greenhouse: GreenhouseConfig = Field(GreenhouseConfig(), description="Room, tables and workstation.")
+    plants: PlantConfig = Field(PlantConfig(), description="Procedural plants and their fruit.")
+    robot: RobotConfig = Field(RobotConfig(), description="The aerial manipulator.")
+    camera: CameraConfig = Field(CameraConfig(), description="The RGB-D camera on the arm's tip.")
+    planner: PlannerConfig = Field(PlannerConfig(), description="Scan waypoints and trajectory limits.")
+    controller: ControllerConfig = Field(ControllerConfig(), description="Flight and arm control, and the physics step.")
+    renderer: RendererConfig = Field(RendererConfig(), description="Rendering of the camera frames.")
+    detector: DetectorConfig = Field(DetectorConfig(), description="The pepper detector.")
+    counting: CountingConfig = Field(CountingConfig(), description="Yield counting and the harvest plan.")
+    mission: MissionConfig = Field(MissionConfig(), description="How the scan is flown.")
 
     @model_validator(mode="after")
-    def _bearing_fits(self) -> Config:
+    def _fits(self) -> Config:
         total = len(self.greenhouse.tables) * self.greenhouse.plants_per_table
         if self.plants.bearing is not None and self.plants.bearing > total:
             raise ValueError(f"plants.bearing: {self.plants.bearing} bearing plants but the greenhouse has {total}")
+        if total * self.plants.leaves[1] > MAX_LEAVES:
+            raise ValueError(f"plants.leaves: {total} plants of up to {self.plants.leaves[1]} leaves are more than {MAX_LEAVES} leaves")
+        if self.camera.rate_hz > self.controller.rate_hz:
+            raise ValueError(f"camera.rate_hz: frames are taken at control ticks, so {self.camera.rate_hz:g} Hz cannot be "
+                             f"served by a {self.controller.rate_hz:g} Hz controller")
         return self
 
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False, default_flow_style=None)
+
+
+def config_schema() -> dict[str, Any]:
+    """JSON schema of the whole config: every field with its description, default and bounds."""
+    return Config.model_json_schema()
 
 
 PRESETS = ("demo", "paper")
@@ -378,15 +487,16 @@ def validate(data: dict[str, Any], source: str) -> Config:
         return Config.model_validate(data)
     except ValidationError as exc:
         error = exc.errors()[0]
-        field = field_path(error["loc"]) or "config"
+        field = field_path(error["loc"])  # empty for a check across sections, whose message names its fields
         message = error["msg"].removeprefix("Value error, ")
         if error["type"] == "extra_forbidden":
             message = "unknown field"
-        raise UserError(f"{source}: {field}: {message}") from None
+        raise UserError(f"{source}: {field + ': ' if field else ''}{message}") from None
 
 
-def load_config(preset: str = "demo", config_file: Path | None = None, seed: int | None = None) -> Config:
-    """Preset, then the user's YAML over it, then the CLI seed over both."""
+def load_config(preset: str = "demo", config_file: Path | None = None, seed: int | None = None,
+                online: bool | None = None) -> Config:
+    """Preset, then the user's YAML over it, then the command line (seed, --online) over both."""
     data = preset_overrides(preset)
     source = f"preset {preset}"
     if config_file is not None:
@@ -394,6 +504,8 @@ def load_config(preset: str = "demo", config_file: Path | None = None, seed: int
         source = str(config_file)
     if seed is not None:
         data = deep_merge(data, {"seed": seed})
+    if online is not None:
+        data = deep_merge(data, {"mission": {"online": online}})
     return validate(data, source)
 
 

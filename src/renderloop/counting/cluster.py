@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +47,7 @@ from renderloop.counting.assign import (
     plants_by_volume,
     rows_by_table,
 )
+from renderloop.rundir.models import DetectionFrame
 from renderloop.scene.model import Scene
 
 CLASSES = ("ripe", "unripe")
@@ -145,6 +147,16 @@ class RowCount:
     clusters: RowClusters
     plants: np.ndarray  # (K,) plant id of each cluster centre
     removed: np.ndarray  # (R, 3)
+
+
+def class_points(frames: Iterable[DetectionFrame]) -> dict[str, np.ndarray]:
+    """World points of each class, in frame order; detections without depth have no place to count."""
+    points: dict[str, list] = {label: [] for label in CLASSES}
+    for frame in frames:
+        for detection in frame.detections:
+            if detection.position is not None:
+                points[detection.label].append(detection.position)
+    return {label: np.array(found, dtype=float).reshape(-1, 3) for label, found in points.items()}
 
 
 def params_from(counting: CountingConfig) -> ClusterParams:

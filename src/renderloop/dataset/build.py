@@ -34,10 +34,12 @@ from renderloop.errors import UserError
 from renderloop.io.atomic import write_bytes, write_json
 from renderloop.render.camera import Intrinsics
 from renderloop.render.executor import ray_session, spawnable_sys_path
+from renderloop.rundir import ownership
 
 VIEW_STREAM = 0x71E3
 JPEG_QUALITY = 95
 MANIFEST = "dataset.json"
+PREVIEW = "preview.png"
 
 Rendered = list[tuple[int, bytes, dict]]
 Progress = Callable[[int, int], None]
@@ -83,7 +85,21 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
     return out
 
 
+PARTS = ("images", "labels", "annotations")  # the folders of a dataset
+
+
+def older_dataset(directory: Path) -> bool:
+    """A dataset from before the ownership mark: its manifest and nothing but a dataset's folders and files."""
+    known = {*PARTS, MANIFEST, PREVIEW}
+    return (directory / MANIFEST).is_file() and all(entry.name in known for entry in directory.iterdir())
+
+
+def claim_dataset(out: Path) -> Path:
+    return ownership.claim(out, ownership.DATASET, adopt=older_dataset)
+
+
 def _check_spec(out: Path, spec: DatasetSpec, force: bool) -> None:
+    claim_dataset(out)
     path = out / MANIFEST
     if path.is_file() and not force:
         try:
@@ -93,10 +109,8 @@ def _check_spec(out: Path, spec: DatasetSpec, force: bool) -> None:
         if recorded != spec.manifest():
             raise UserError(f"{out}: holds a dataset of other settings (see {MANIFEST}); use --force to replace it")
     elif force:
-        for sub in ("images", "labels", "annotations"):
-            for file in (out / sub).glob("*") if (out / sub).is_dir() else ():
-                file.unlink()
-    for sub in ("images", "labels", "annotations"):
+        ownership.remove_recorded(out, PARTS)
+    for sub in PARTS:
         (out / sub).mkdir(parents=True, exist_ok=True)
     write_json(path, spec.manifest())
 
@@ -157,5 +171,5 @@ def build_dataset(out: Path, images: int, spec: DatasetSpec, workers: int = 1, e
             progress(done + rendered, images)
     records = [json.loads((out / "labels" / image_name(i, "json")).read_text(encoding="utf-8")) for i in range(images)]
     write_coco(out / "annotations", records)
-    draw_preview(out, records[:24], out / "preview.png")
+    draw_preview(out, records[:24], out / PREVIEW)
     return rendered

@@ -22,19 +22,16 @@ from pathlib import Path
 
 import numpy as np
 
-from renderloop.dataset.build import MANIFEST, image_name, jpeg_bytes
+from renderloop.dataset.build import MANIFEST, PARTS, PREVIEW, claim_dataset, image_name, jpeg_bytes
 from renderloop.dataset.coco import write_coco
 from renderloop.dataset.labels import MIN_SIDE, pepper_boxes, pepper_vertices
 from renderloop.dataset.preview import draw_preview
 from renderloop.errors import UserError
-from renderloop.io import rundir
 from renderloop.io.atomic import write_bytes, write_json
-from renderloop.render.camera import read_camera_info
-from renderloop.render.frames import frame_name, read_png
-from renderloop.render.stage import load_poses
-from renderloop.scene.model import load_scene
+from renderloop.render.frames import read_png
+from renderloop.rundir import files, names, ownership
 
-INPUTS = ("config.yaml", "scene.json", "groundtruth.txt", "camera_info.yaml")
+NEEDS = (names.CONFIG, names.SCENE, names.POSES, names.CAMERA_INFO)
 LABEL_WIDTH = 320  # the width at which `labels.MIN_SIDE` is set: the detector's input
 PREVIEW_IMAGES = 12
 
@@ -43,27 +40,27 @@ Progress = Callable[[int, int], None]
 
 def _frames(run_dir: Path, every: int) -> tuple[np.ndarray, list[int]]:
     """The run's camera poses and the indices of its chosen frames, each checked to be rendered with its mask."""
-    rundir.require(run_dir, INPUTS, "render")
-    _, poses = load_poses(run_dir)
+    files.require(run_dir, NEEDS)
+    _, poses = files.read_poses(run_dir)
     indices = list(range(0, len(poses), every))
-    for sub in ("rgb", "masks"):
-        missing = next((i for i in indices if not (run_dir / sub / frame_name(i)).is_file()), None)
+    for stream in (names.RGB, names.MASKS):
+        missing = next((i for i in indices if not (run_dir / names.frame_file(stream, i)).is_file()), None)
         if missing is not None:
-            raise UserError(f"{run_dir / sub / frame_name(missing)}: missing (render the run with masks first)")
+            raise UserError(f"{run_dir / names.frame_file(stream, missing)}: missing (render the run with masks first)")
     return poses, indices
 
 
 def _run_records(run_dir: Path, poses: np.ndarray, indices: list[int], first: int, split: str, out: Path) -> list[dict]:
     """Write the run's chosen frames as JPEG images and label files; their records in order."""
-    scene = load_scene(run_dir / "scene.json")
-    near = rundir.read_config(run_dir).camera.clip[0]
-    intrinsics = read_camera_info(run_dir / "camera_info.yaml")
+    scene = files.read_scene(run_dir)
+    near = files.read_config(run_dir).camera.clip[0]
+    intrinsics = files.read_camera_info(run_dir)
     peppers = {pepper.id: pepper for pepper in scene.peppers}
     meshes = pepper_vertices(scene)
     min_side = MIN_SIDE * intrinsics.width / LABEL_WIDTH
     records = []
     for offset, index in enumerate(indices):
-        rgb_path, mask_path = run_dir / "rgb" / frame_name(index), run_dir / "masks" / frame_name(index)
+        rgb_path, mask_path = run_dir / names.frame_file(names.RGB, index), run_dir / names.frame_file(names.MASKS, index)
         rgb, mask = read_png(rgb_path, np.uint8), read_png(mask_path, np.uint16)
         if rgb.shape[:2] != mask.shape or rgb.shape[:2] != (intrinsics.height, intrinsics.width):
             raise UserError(f"{mask_path}: its size does not match {rgb_path} and camera_info.yaml")
@@ -94,12 +91,12 @@ def dataset_from_runs(runs: list[Path], out: Path, every: int = 1, val_runs: int
     if not 0 <= val_runs < len(runs):
         raise UserError(f"--val-runs {val_runs}: must leave at least one of the {len(runs)} runs for training")
     chosen = [_frames(run, every) for run in runs]  # every run checked before anything is written
+    claim_dataset(out)
     if (out / MANIFEST).is_file() and _source(out / MANIFEST) != "runs":
         raise UserError(f"{out}: holds a rendered dataset (see {MANIFEST}); give another --out")
-    for sub in ("images", "labels", "annotations"):
+    ownership.remove_recorded(out, PARTS)  # the last conversion's images, not one of them left to mix in
+    for sub in PARTS:
         (out / sub).mkdir(parents=True, exist_ok=True)
-        for stale in (out / sub).glob("*"):
-            stale.unlink()
     total, records = sum(len(indices) for _, indices in chosen), []
     for number, (run, (poses, indices)) in enumerate(zip(runs, chosen)):
         split = "val" if number >= len(runs) - val_runs else "train"
@@ -110,7 +107,7 @@ def dataset_from_runs(runs: list[Path], out: Path, every: int = 1, val_runs: int
     write_json(out / MANIFEST, {
         "source": "runs", "every": every, "val_runs": val_runs,
         "runs": [{"path": str(run), "frames": len(indices),
-                  "scene_sha256": hashlib.sha256((run / "scene.json").read_bytes()).hexdigest()} for run, (_, indices) in zip(runs, chosen)],
+                  "scene_sha256": hashlib.sha256((run / names.SCENE).read_bytes()).hexdigest()} for run, (_, indices) in zip(runs, chosen)],
     })
-    draw_preview(out, records[::max(1, len(records) // PREVIEW_IMAGES)][:PREVIEW_IMAGES], out / "preview.png")
+    draw_preview(out, records[::max(1, len(records) // PREVIEW_IMAGES)][:PREVIEW_IMAGES], out / PREVIEW)
     return len(records)

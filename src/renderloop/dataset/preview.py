@@ -7,6 +7,7 @@ from pathlib import Path
 from PIL import Image, ImageDraw
 
 from renderloop.io.atomic import atomic_path
+from renderloop.io.images import open_image
 
 COLORS = {"ripe": (255, 40, 40), "unripe": (0, 230, 255)}
 IGNORED = (150, 150, 150)
@@ -18,7 +19,7 @@ def draw_preview(root: Path, records: list[dict], path: Path) -> None:
         return
     tiles = []
     for record in records:
-        image = Image.open(root / record["image"]).convert("RGB")
+        image = open_image(root / record["image"], "RGB")
         draw = ImageDraw.Draw(image)
         for pepper in record["peppers"]:
             color = IGNORED if pepper["ignore"] else COLORS[pepper["label"]]

@@ -9,6 +9,7 @@ threads. With Ray, OUT must be on a file system every node sees.
 from __future__ import annotations
 
 import io
+import re
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
@@ -17,20 +18,26 @@ from pathlib import Path
 from rich.console import Console
 
 from renderloop.config import Config
-from renderloop.evaluation.table import Scenario, scenario
-from renderloop.io import rundir
+from renderloop.evaluation.table import EVAL_CSV, EVAL_JSON, Scenario, scenario
 from renderloop.pipeline import run_pipeline
 from renderloop.render.executor import (
     ray_session,
     spawnable_sys_path,
     threads_per_worker,
 )
+from renderloop.rundir import files, ownership
+from renderloop.rundir.stage import claim
 
 Progress = Callable[[int, int], None]
 
 
 def run_dir_of(out: Path, seed: int) -> Path:
     return Path(out) / f"seed_{seed}"
+
+
+def _older_evaluation(directory: Path) -> bool:
+    """An evaluation from before the ownership mark: only seed runs and the table in it."""
+    return all(re.fullmatch(r"seed_\d+", entry.name) or entry.name in (EVAL_CSV, EVAL_JSON) for entry in directory.iterdir())
 
 
 def run_seed(out: Path, config: Config, force: bool) -> Scenario:
@@ -67,13 +74,13 @@ def _ray(out: Path, configs: list[Config], force: bool, workers: int, address: s
 def evaluate(base: Config, seeds: list[int], out: Path, workers: int = 1, executor: str = "local",
              address: str | None = None, force: bool = False, progress: Progress | None = None) -> list[Scenario]:
     """Every seed's scenario, in seed order; `progress` hears (runs finished, runs) as they finish."""
-    out = rundir.check_target(Path(out))
-    out.mkdir(parents=True, exist_ok=True)
+    out = ownership.claim(Path(out), ownership.EVAL, adopt=_older_evaluation)
     shared = threads_per_worker(base, workers)
     configs = [shared.model_copy(update={"seed": seed}) for seed in seeds]
-    if not force:  # refuse before any work, not after hours of it
-        for config in configs:
-            rundir.check_config(run_dir_of(out, config.seed), config)
+    for config in configs:  # refuse before any work, not after hours of it
+        claim(run_dir_of(out, config.seed))
+        if not force:
+            files.check_config(run_dir_of(out, config.seed), config)
     runs = _ray(out, configs, force, workers, address) if executor == "ray" else _local(out, configs, force, workers)
     finished: list[Scenario] = []
     if progress:

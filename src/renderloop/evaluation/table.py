@@ -6,8 +6,10 @@ import io
 from dataclasses import asdict, astuple, dataclass, fields
 from pathlib import Path
 
-from renderloop.counting.stage import read_counts
 from renderloop.io.atomic import write_json, write_text
+from renderloop.rundir.files import read_counts
+
+EVAL_CSV, EVAL_JSON = "eval.csv", "eval.json"
 
 
 @dataclass(frozen=True)
@@ -23,10 +25,9 @@ class Scenario:
 
 def scenario(seed: int, run_dir: Path) -> Scenario:
     counts = read_counts(run_dir)
-    total, plants = counts["total"], counts["plants"]
-    exact = sum(plant["estimate"] == plant["truth"] for plant in plants) / max(1, len(plants))
-    return Scenario(seed, total["truth"], total["estimate"], total["error_pct"], round(exact, 4),
-                    total["unripe_truth"], total["unripe_estimate"])
+    total, plants = counts.total, counts.plants
+    exact = sum(plant.estimate == plant.truth for plant in plants) / max(1, len(plants))
+    return Scenario(seed, total.truth, total.estimate, total.error_pct, round(exact, 4), total.unripe_truth, total.unripe_estimate)
 
 
 def summary(scenarios: list[Scenario]) -> dict[str, float | int | None]:
@@ -48,8 +49,8 @@ def write_eval(out: Path, scenarios: list[Scenario]) -> None:
     buffer.write(",".join(f.name for f in fields(Scenario)) + "\n")
     for row in scenarios:
         buffer.write(",".join("" if value is None else str(value) for value in astuple(row)) + "\n")
-    write_text(Path(out) / "eval.csv", buffer.getvalue())
-    write_json(Path(out) / "eval.json", {"scenarios": [asdict(s) for s in scenarios], "summary": summary(scenarios)})
+    write_text(Path(out) / EVAL_CSV, buffer.getvalue())
+    write_json(Path(out) / EVAL_JSON, {"scenarios": [asdict(s) for s in scenarios], "summary": summary(scenarios)})
 
 
 def format_table(scenarios: list[Scenario]) -> str:

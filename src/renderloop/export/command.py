@@ -6,7 +6,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from renderloop.errors import UserError
-from renderloop.export.run_contents import read_run
+from renderloop.rundir import ownership
+from renderloop.rundir.contents import read_run
 
 
 def _check_target(path: Path, force: bool, suffix: str | None = None) -> None:
@@ -16,6 +17,8 @@ def _check_target(path: Path, force: bool, suffix: str | None = None) -> None:
         raise UserError(f"{path}: exists; use --force to replace it")
     if not path.parent.is_dir():
         raise UserError(f"{path.parent}: no such directory")
+    if suffix is None:  # a bag folder is replaced whole: only one renderloop wrote
+        ownership.check_replaceable(path, ownership.BAG)
 
 
 def export_run(run_dir: Path, rosbag: Path | None, rerun: Path | None, every: int, force: bool,
@@ -30,7 +33,7 @@ def export_run(run_dir: Path, rosbag: Path | None, rerun: Path | None, every: in
     if rosbag is not None:
         from renderloop.export.rosbag import write_rosbag
 
-        counts = write_rosbag(contents, Path(rosbag), every, force)
+        counts = write_rosbag(contents, Path(rosbag), every)
         echo(f"export: wrote {rosbag} ({sum(counts.values())} messages on {len(counts)} topics)")
     if rerun is not None:
         from renderloop.export.rerun_recording import write_rerun

@@ -17,12 +17,13 @@ import numpy as np
 import rerun as rr
 
 from renderloop.errors import UserError
-from renderloop.export.run_contents import Frame, RunContents
 from renderloop.io.atomic import atomic_path
 from renderloop.perception.pointcloud import organised_cloud
 from renderloop.render.camera import Intrinsics
 from renderloop.render.frames import DEPTH_SCALE, decode_depth, read_png
 from renderloop.robot.kinematics import planned_camera_positions
+from renderloop.rundir.contents import Frame, RunContents
+from renderloop.rundir.models import Counts, Detection
 from renderloop.scene.model import Scene
 
 TIMELINE = "sim_time"
@@ -85,16 +86,16 @@ def _flight(rec: rr.RecordingStream, contents: RunContents) -> int:
     return len(rows)
 
 
-def _detections(rec: rr.RecordingStream, found: list[dict]) -> int:
+def _detections(rec: rr.RecordingStream, found: list[Detection]) -> int:
     """Logged on every frame, empty ones too: Rerun shows the latest value, so no-detections must overwrite the last boxes."""
     rec.log("world/camera/image/detections", rr.Boxes2D(
-        array=np.array([d["bbox"] for d in found], dtype=np.float32).reshape(-1, 4), array_format=rr.Box2DFormat.XYXY,
-        labels=[f"{d['label']} {d['score']:.2f}" for d in found], class_ids=[CLASS_IDS[d["label"]] for d in found],
-        colors=[CLASS_COLOURS[d["label"]] for d in found]))
-    placed = [d for d in found if d["position"] is not None]
+        array=np.array([d.bbox for d in found], dtype=np.float32).reshape(-1, 4), array_format=rr.Box2DFormat.XYXY,
+        labels=[f"{d.label} {d.score:.2f}" for d in found], class_ids=[CLASS_IDS[d.label] for d in found],
+        colors=[CLASS_COLOURS[d.label] for d in found]))
+    placed = [d for d in found if d.position is not None]
     rec.log("world/detections/points", rr.Points3D(
-        np.array([d["position"] for d in placed], dtype=np.float32).reshape(-1, 3), radii=0.015,
-        class_ids=[CLASS_IDS[d["label"]] for d in placed], colors=[CLASS_COLOURS[d["label"]] for d in placed]))
+        np.array([d.position for d in placed], dtype=np.float32).reshape(-1, 3), radii=0.015,
+        class_ids=[CLASS_IDS[d.label] for d in placed], colors=[CLASS_COLOURS[d.label] for d in placed]))
     return len(found)
 
 
@@ -130,10 +131,10 @@ def _frames(rec: rr.RecordingStream, contents: RunContents, every: int) -> dict[
     return {"frames": len(contents.frames), "images": images, "detections": detections}
 
 
-def _counts(rec: rr.RecordingStream, counts: dict) -> int:
+def _counts(rec: rr.RecordingStream, counts: Counts) -> int:
     logged = 0
     for key, entity in (("clusters", "world/counts/ripe"), ("unripe_clusters", "world/counts/unripe")):
-        centres = [(plant["id"], centre) for plant in counts["plants"] for centre in plant[key]]
+        centres = [(plant.id, centre) for plant in counts.plants for centre in getattr(plant, key)]
         if centres:
             rec.log(entity, rr.Points3D(
                 [centre for _, centre in centres], radii=0.025, colors=[PLANT_PALETTE[i % len(PLANT_PALETTE)] for i, _ in centres],

@@ -15,6 +15,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from scipy.spatial.transform import Rotation
 
 from renderloop.render.camera import Intrinsics
+from renderloop.rundir.models import Detection
 
 VISION_MSGS = {
     "vision_msgs/msg/Point2D": "float64 x\nfloat64 y\n",
@@ -116,14 +117,14 @@ class RosMessages:
             positions=positions, velocities=velocities, accelerations=accelerations, effort=np.zeros(0),
             time_from_start=self.time(seconds, "Duration"))
 
-    def detections(self, seconds: float, frame_id: str, found: list[dict], world_to_camera: np.ndarray):
+    def detections(self, seconds: float, frame_id: str, found: list[Detection], world_to_camera: np.ndarray):
         """Detection2DArray; each hypothesis' pose is the fruit point in the camera frame (zero when it had none)."""
         items = []
         for number, detection in enumerate(found):
-            x0, y0, x1, y1 = detection["bbox"]
-            point = np.zeros(3) if detection["position"] is None else world_to_camera[:3, :3] @ detection["position"] + world_to_camera[:3, 3]
+            x0, y0, x1, y1 = detection.bbox
+            point = np.zeros(3) if detection.position is None else world_to_camera[:3, :3] @ detection.position + world_to_camera[:3, 3]
             hypothesis = self.t["vision_msgs/msg/ObjectHypothesisWithPose"](
-                hypothesis=self.t["vision_msgs/msg/ObjectHypothesis"](class_id=detection["label"], score=float(detection["score"])),
+                hypothesis=self.t["vision_msgs/msg/ObjectHypothesis"](class_id=detection.label, score=float(detection.score)),
                 pose=self.t["geometry_msgs/msg/PoseWithCovariance"](pose=self.pose(_translation(point)), covariance=np.zeros(36)))
             box = self.t["vision_msgs/msg/BoundingBox2D"](
                 center=self.t["vision_msgs/msg/Pose2D"](position=self.t["vision_msgs/msg/Point2D"](x=(x0 + x1) / 2, y=(y0 + y1) / 2), theta=0.0),

@@ -27,11 +27,12 @@ from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlu
 from scipy.spatial.transform import Rotation
 
 from renderloop.export.ros_messages import RosMessages
-from renderloop.export.run_contents import RunContents
 from renderloop.io.atomic import atomic_directory
 from renderloop.perception.pointcloud import organised_cloud
 from renderloop.render.frames import decode_depth, read_png
 from renderloop.robot.kinematics import arm_frames, homogeneous
+from renderloop.rundir import ownership
+from renderloop.rundir.contents import RunContents
 
 OPTICAL_FRAME = "camera_optical_frame"
 LINKS = ("base_link", "arm_link1", "arm_link2", "arm_link3")
@@ -136,14 +137,14 @@ class BagBuilder:
         scene = self.run.scene
         palette = _palette(len(scene.plants))
         markers = []
-        for entry in self.run.counts["plants"]:
-            colour = palette[entry["id"] % len(palette)]
-            for kind, shape in (("clusters", "SPHERE"), ("unripe_clusters", "CUBE")):
-                for centre in entry.get(kind, []):
-                    markers.append(self.ros.marker(0.0, f"plant_{entry['id']}", len(markers), shape, centre, 0.06, colour))
-            box = scene.plant(entry["id"]).bounds
+        for entry in self.run.counts.plants:
+            colour = palette[entry.id % len(palette)]
+            for centres, shape in ((entry.clusters, "SPHERE"), (entry.unripe_clusters, "CUBE")):
+                for centre in centres:
+                    markers.append(self.ros.marker(0.0, f"plant_{entry.id}", len(markers), shape, centre, 0.06, colour))
+            box = scene.plant(entry.id).bounds
             top = [(box.min[0] + box.max[0]) / 2, (box.min[1] + box.max[1]) / 2, box.max[2] + 0.1]
-            label = f"plant {entry['id']}: {entry['estimate']} ({entry['truth']})"
+            label = f"plant {entry.id}: {entry.estimate} ({entry.truth})"
             markers.append(self.ros.marker(0.0, "labels", len(markers), "TEXT_VIEW_FACING", top, 0.08, (1.0, 1.0, 1.0, 1.0), label))
         return self.ros.marker_array(markers)
 
@@ -155,11 +156,12 @@ def _palette(count: int) -> list[tuple[float, float, float, float]]:
     return [tuple(map(float, c)) for c in colours]
 
 
-def write_rosbag(contents: RunContents, out: Path, every: int = 1, force: bool = False) -> dict[str, int]:
-    """Write the bag directory `out` (metadata.yaml + one .mcap); returns messages per topic."""
+def write_rosbag(contents: RunContents, out: Path, every: int = 1) -> dict[str, int]:
+    """Write the bag directory `out` (metadata.yaml + one .mcap); returns messages per topic. An existing `out` is
+    replaced only if it is a bag renderloop wrote."""
     builder = BagBuilder(contents, every)
     counts: Counter[str] = Counter()
-    with atomic_directory(Path(out), force) as tmp:
+    with atomic_directory(Path(out), ownership.BAG) as tmp:
         writer = Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP)
         writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         with writer:

@@ -16,7 +16,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from renderloop.errors import UserError
+from renderloop.rundir import ownership
 
 TEMP_SUFFIX = ".partial"
 
@@ -35,8 +35,12 @@ def final_path(path: Path) -> Path:
 
 @contextmanager
 def atomic_path(path: Path) -> Iterator[Path]:
-    """Yield a temporary path to write to; rename it onto `path` only if the block succeeds."""
+    """Yield a temporary path to write to; rename it onto `path` only if the block succeeds.
+
+    Inside a directory renderloop owns, the file is recorded as ours first (and a file there that is not ours is refused).
+    """
     path = Path(path)
+    ownership.record(path)
     tmp = temporary_path(path)
     try:
         yield tmp
@@ -54,30 +58,21 @@ def atomic_path(path: Path) -> Iterator[Path]:
 
 
 @contextmanager
-def atomic_directory(path: Path, replace: bool = False) -> Iterator[Path]:
+def atomic_directory(path: Path, kind: str) -> Iterator[Path]:
     """Yield a path for a new directory (which does not exist yet) that appears at `path` only when the block succeeds.
 
     The directory is built inside a hidden staging folder beside `path` and renamed out,
-    so it keeps its own name inside (a ROS 2 bag names its files after its folder).
-    An existing `path` is refused unless `replace`, and then it is swapped out last.
+    so it keeps its own name inside (a ROS 2 bag names its files after its folder). It is
+    marked as a renderloop directory of `kind`; an existing `path` is replaced only if it
+    carries that mark, and only once the new one is complete.
     """
     path = Path(path)
-    if path.exists() and not replace:
-        raise UserError(f"{path}: exists; use --force to replace it")
     staging = temporary_path(path)
     shutil.rmtree(staging, ignore_errors=True)
     staging.mkdir(parents=True)
     try:
         yield staging / path.name
-        old = staging / f"{path.name}.old"
-        if path.exists():
-            os.replace(path, old)
-        try:
-            os.replace(staging / path.name, path)
-        except OSError:
-            if old.exists():
-                os.replace(old, path)  # the earlier export stays rather than nothing
-            raise
+        ownership.replace_directory(staging / path.name, path, kind)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
 

@@ -16,13 +16,27 @@ from renderloop.errors import UserError
 from renderloop.io.atomic import write_text
 
 
-def write_tum(path: Path, times: np.ndarray, positions: np.ndarray, rotations: np.ndarray, comment: str) -> None:
+FORMAT = ["%.6f"] + ["%.9f"] * 7  # timestamp, then position and quaternion
+
+
+def _rows(times: np.ndarray, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
     quaternions = Rotation.from_matrix(rotations).as_quat()  # qx qy qz qw, as TUM and ROS store them
+    return np.column_stack([times, positions, quaternions])
+
+
+def write_tum(path: Path, times: np.ndarray, positions: np.ndarray, rotations: np.ndarray, comment: str) -> None:
     buffer = io.StringIO()
     buffer.write("".join(f"# {line}\n" for line in comment.splitlines()))
     buffer.write("# timestamp tx ty tz qx qy qz qw\n")
-    np.savetxt(buffer, np.column_stack([times, positions, quaternions]), fmt=["%.6f"] + ["%.9f"] * 7)
+    np.savetxt(buffer, _rows(times, positions, rotations), fmt=FORMAT)
     write_text(path, buffer.getvalue())
+
+
+def as_stored(position: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A pose as a TUM file gives it back: rounded as written, so a pose used now equals the one read later."""
+    row = _rows(np.zeros(1), np.reshape(position, (1, 3)), np.reshape(rotation, (1, 3, 3)))[0]
+    stored = np.array([float(fmt % value) for fmt, value in zip(FORMAT, row)])
+    return stored[1:4], Rotation.from_quat(stored[4:8]).as_matrix()
 
 
 def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

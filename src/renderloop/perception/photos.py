@@ -12,10 +12,10 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, UnidentifiedImageError
 
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_json
+from renderloop.io.images import read_image
 from renderloop.perception.detector import Detector
 from renderloop.perception.tiling import Layout, layout_names
 
@@ -35,18 +35,17 @@ def list_photos(folder: Path) -> list[Path]:
 
 
 def _read_rgb(path: Path) -> np.ndarray:
-    try:
-        with Image.open(path) as image:
-            return np.asarray(image.convert("RGB"))
-    except (OSError, UnidentifiedImageError, ValueError, SyntaxError):
-        raise UserError(f"{path}: not a readable image") from None
+    return read_image(path, "RGB")
 
 
 def detect_photos(folder: Path, out: Path, model: Path | None, threshold: float, layouts: Sequence[Layout], mirror: bool,
-                  progress: Progress | None = None) -> int:
+                  force: bool = False, progress: Progress | None = None) -> int:
+    """Detect on every photo of `folder` into `out`; an existing `out` is replaced only with `force`."""
     photos = list_photos(folder)
     if Path(out).is_dir():
         raise UserError(f"--out {out}: is a folder; give a .json file name")
+    if Path(out).exists() and not force:
+        raise UserError(f"{out}: exists; use --force to replace it")
     detector = Detector(model)
     results: dict[str, dict] = {}
     record = {"model": str(detector.path), "score_threshold": threshold, "windows": layout_names(layouts),

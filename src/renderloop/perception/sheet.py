@@ -9,36 +9,38 @@ from PIL import Image, ImageDraw
 
 from renderloop.io.atomic import atomic_path
 from renderloop.perception.scoring import findable, mask_boxes
-from renderloop.render.frames import frame_name, read_png
-from renderloop.scene.model import load_scene
+from renderloop.render.frames import read_png
+from renderloop.rundir import names
+from renderloop.rundir.files import read_scene
+from renderloop.rundir.models import DetectionFrame
 
 ROWS = 6
 COLORS = {"ripe": (255, 40, 40), "unripe": (0, 220, 255)}
 SMALL = (160, 160, 160)  # truth too small to be scored
 
 
-def _pick(frames: list[dict], rows: int) -> list[dict]:
+def _pick(frames: list[DetectionFrame], rows: int) -> list[DetectionFrame]:
     """Frames spread over the run, those with most detections first among neighbours."""
     if len(frames) <= rows:
         return frames
     groups = np.array_split(np.arange(len(frames)), rows)
-    return [frames[max(group, key=lambda i: len(frames[i]["detections"]))] for group in groups]
+    return [frames[max(group, key=lambda i: len(frames[i].detections))] for group in groups]
 
 
-def draw_detection_sheet(run_dir: Path, frames: list[dict], path: Path, rows: int = ROWS) -> None:
+def draw_detection_sheet(run_dir: Path, frames: list[DetectionFrame], path: Path, rows: int = ROWS) -> None:
     if not frames:
         return
-    ripe = {p.id: p.ripe for p in load_scene(run_dir / "scene.json").peppers}
+    ripe = {p.id: p.ripe for p in read_scene(run_dir).peppers}
     tiles = []
     for frame in _pick(frames, rows):
-        rgb = Image.fromarray(read_png(run_dir / frame["image"], np.uint8))
+        rgb = Image.fromarray(read_png(run_dir / frame.image, np.uint8))
         left, right = rgb.copy(), rgb.copy()
         draw = ImageDraw.Draw(left)
-        for d in frame["detections"]:
-            draw.rectangle(d["bbox"], outline=COLORS[d["label"]], width=2)
-            draw.text((d["bbox"][0] + 2, d["bbox"][1] + 1), f"{d['score']:.2f}", fill=COLORS[d["label"]])
+        for d in frame.detections:
+            draw.rectangle(d.bbox, outline=COLORS[d.label], width=2)
+            draw.text((d.bbox[0] + 2, d.bbox[1] + 1), f"{d.score:.2f}", fill=COLORS[d.label])
         draw = ImageDraw.Draw(right)
-        for pepper, box in mask_boxes(read_png(run_dir / "masks" / frame_name(frame["index"]), np.uint16)).items():
+        for pepper, box in mask_boxes(read_png(run_dir / names.frame_file(names.MASKS, frame.index), np.uint16)).items():
             color = COLORS["ripe" if ripe[pepper] else "unripe"] if findable(box) else SMALL
             draw.rectangle(box, outline=color, width=2)
         tiles.append((left, right))

@@ -18,14 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
-from renderloop.io import rundir
 from renderloop.perception.detector import PASS_FLOOR, Detector
 from renderloop.perception.scoring import RunScore, mask_boxes
-from renderloop.perception.stage import INPUTS as DETECT_INPUTS, read_rgb_frame
+from renderloop.perception.stage import NEEDS as DETECT_NEEDS
+from renderloop.perception.stage import read_rgb_frame
 from renderloop.perception.tiling import Layout
-from renderloop.render.frames import frame_name, read_png
-from renderloop.render.stage import load_poses
-from renderloop.scene.model import Scene, load_scene
+from renderloop.render.frames import read_png
+from renderloop.rundir import files, names
+from renderloop.scene.model import Scene
 
 THRESHOLDS = tuple(round(t, 2) for t in np.arange(PASS_FLOOR, 0.96, 0.01))  # below the floor, fused boxes were not kept
 
@@ -60,15 +60,15 @@ class SearchedRun:
 def search_run(run_dir: Path, detector: Detector, layouts: Sequence[Layout], mirror: bool,
                progress: Progress | None = None) -> SearchedRun:
     run_dir = Path(run_dir)
-    rundir.require(run_dir, DETECT_INPUTS, "render")
-    scene = load_scene(run_dir / "scene.json")
+    files.require(run_dir, DETECT_NEEDS)
+    scene = files.read_scene(run_dir)
     frames = []
-    count = len(load_poses(run_dir)[0])
+    count = len(files.read_poses(run_dir)[0])
     for index in range(count):
         if progress:
             progress(index, count)
         found = [d.to_json() for d in detector.detect(read_rgb_frame(run_dir, index), PASS_FLOOR, layouts, mirror)]
-        frames.append((found, mask_boxes(read_png(run_dir / "masks" / frame_name(index), np.uint16))))
+        frames.append((found, mask_boxes(read_png(run_dir / names.frame_file(names.MASKS, index), np.uint16))))
     return SearchedRun(scene, frames)
 
 

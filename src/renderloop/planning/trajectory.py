@@ -40,10 +40,15 @@ class Trajectory:
         return np.column_stack([self.t, self.q, self.qd, self.qdd])
 
 
+def path_norm(steps: np.ndarray) -> np.ndarray:
+    """The path parameter's length of q* steps (or speed of q̇*): metres plus weighted radians."""
+    steps = np.asarray(steps, dtype=float)
+    return np.linalg.norm(steps[..., :3], axis=-1) + ANGLE_WEIGHT * np.linalg.norm(steps[..., 3:], axis=-1)
+
+
 def path_parameter(dofs: np.ndarray) -> np.ndarray:
     """Chord length over positions plus weighted angles; refuses waypoints that coincide."""
-    steps = np.diff(dofs, axis=0)
-    lengths = np.linalg.norm(steps[:, :3], axis=1) + ANGLE_WEIGHT * np.linalg.norm(steps[:, 3:], axis=1)
+    lengths = path_norm(np.diff(dofs, axis=0))
     for index in np.flatnonzero(lengths < 1e-6):
         raise UserError(f"planner: waypoints {index} and {index + 1} coincide; a path cannot pass a point twice in a row")
     return np.concatenate([[0.0], np.cumsum(lengths)])
@@ -61,11 +66,19 @@ def _times_at(gridpoints: np.ndarray, path_velocity: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(np.diff(gridpoints) / np.maximum(mean, 1e-12))])
 
 
-def time_parameterize(waypoints: np.ndarray, planner: PlannerConfig) -> Trajectory:
+def time_parameterize(waypoints: np.ndarray, planner: PlannerConfig, start_velocity: np.ndarray | None = None) -> Trajectory:
+    """The fastest trajectory through `waypoints` within the limits, from rest or, for a replan mid-flight, leaving
+    the first waypoint with `start_velocity` (q̇*: the path starts along it at its speed); it always ends at rest."""
     dofs = np.array(waypoints, dtype=float)
     dofs[:, 3] = np.unwrap(dofs[:, 3])
     ss = path_parameter(dofs)
-    path = toppra.SplineInterpolator(ss, dofs, bc_type="clamped")
+    start_speed = 0.0
+    if start_velocity is None:
+        path = toppra.SplineInterpolator(ss, dofs, bc_type="clamped")
+    else:
+        start_speed = float(path_norm(start_velocity))
+        tangent = np.asarray(start_velocity, dtype=float) / start_speed  # dq*/ds: unit speed in the path parameter
+        path = toppra.SplineInterpolator(ss, dofs, bc_type=((1, tangent), (1, np.zeros(dofs.shape[1]))))
     velocity = planner.limit_margin * np.asarray(planner.velocity_limits)
     acceleration = planner.limit_margin * np.asarray(planner.acceleration_limits)
     constraints = [
@@ -74,7 +87,7 @@ def time_parameterize(waypoints: np.ndarray, planner: PlannerConfig) -> Trajecto
     ]
     gridpoints = _gridpoints(ss)
     instance = toppra.algorithm.TOPPRA(constraints, path, gridpoints=gridpoints, parametrizer="ParametrizeConstAccel")
-    trajectory = instance.compute_trajectory(0.0, 0.0)
+    trajectory = instance.compute_trajectory(start_speed, 0.0)
     if trajectory is None:
         raise UserError("planner: TOPP-RA found no feasible parameterisation (check the limits and the waypoints)")
     data = instance.problem_data

@@ -10,14 +10,11 @@ Depth is planar, along the optical z axis (REP-118).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import yaml
 
 from renderloop.config import CameraConfig
-from renderloop.errors import UserError
-from renderloop.io.atomic import write_text
 
 OPTICAL_TO_GL = np.diag([1.0, -1.0, -1.0])
 CAMERA_NAME = "renderloop_rgbd"
@@ -81,17 +78,16 @@ def camera_info_yaml(intrinsics: Intrinsics) -> str:
     return yaml.safe_dump(data, sort_keys=False)
 
 
-def write_camera_info(path: Path, intrinsics: Intrinsics) -> None:
-    write_text(path, camera_info_yaml(intrinsics))
-
-
-def read_camera_info(path: Path) -> Intrinsics:
-    path = Path(path)
+def parse_camera_info(text: str) -> Intrinsics:
+    """The intrinsics of a ROS camera_info YAML; ValueError says what is wrong with it."""
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = yaml.safe_load(text)
         k = np.array(data["camera_matrix"]["data"], dtype=float).reshape(3, 3)
-        return Intrinsics(int(data["image_width"]), int(data["image_height"]), k[0, 0], k[1, 1], k[0, 2], k[1, 2])
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such file (run `renderloop render` first)") from None
+        intrinsics = Intrinsics(int(data["image_width"]), int(data["image_height"]), k[0, 0], k[1, 1], k[0, 2], k[1, 2])
     except (yaml.YAMLError, KeyError, TypeError, ValueError):
-        raise UserError(f"{path}: not a ROS camera_info YAML") from None
+        raise ValueError("not a ROS camera_info YAML") from None
+    if not (0 < intrinsics.width <= 65535 and 0 < intrinsics.height <= 65535):
+        raise ValueError(f"image size {intrinsics.width}x{intrinsics.height} is not a camera's")
+    if not (np.isfinite([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy]).all() and intrinsics.fx > 0 and intrinsics.fy > 0):
+        raise ValueError("camera_matrix: focal lengths must be positive and finite")
+    return intrinsics

@@ -47,21 +47,21 @@ def make_renderer(backend: str, scene: Scene, config: Config, intrinsics: Intrin
 class FrameWorker:
     """Renders frames of one run; everything it needs travels with it (picklable)."""
 
-    def __init__(self, config: Config, scene: Scene, poses: np.ndarray, backend: str):
-        self.config, self.poses = config, poses
+    def __init__(self, config: Config, scene: Scene, poses: np.ndarray | None, backend: str):
+        self.config, self.poses = config, poses  # poses: a batch's, or None for frames asked for one by one
         self.renderer = make_renderer(backend, scene, config, Intrinsics.from_config(config.camera))
 
+    def render_pose(self, index: int, pose: np.ndarray) -> tuple[int, dict[str, bytes], dict[str, float]]:
+        """Frame `index` of the run, seen from `pose` (T_world_optical)."""
+        frame = self.renderer.render(pose)
+        noise, sensor = self.config.renderer.depth_noise, None
+        if noise.enabled:  # seeded per frame, so the result does not depend on which worker drew it
+            rng = np.random.default_rng(np.random.SeedSequence([self.config.seed, 0xD3, index]))
+            sensor = sensor_depth(frame.depth, noise, self.config.camera.clip, rng)
+        return index, encode_frame(frame, sensor), frame.timings
+
     def render(self, indices: list[int]) -> Rendered:
-        rendered = []
-        noise = self.config.renderer.depth_noise
-        for index in indices:
-            frame = self.renderer.render(self.poses[index])
-            sensor = None
-            if noise.enabled:  # seeded per frame, so the result does not depend on which worker drew it
-                rng = np.random.default_rng(np.random.SeedSequence([self.config.seed, 0xD3, index]))
-                sensor = sensor_depth(frame.depth, noise, self.config.camera.clip, rng)
-            rendered.append((index, encode_frame(frame, sensor), frame.timings))
-        return rendered
+        return [self.render_pose(index, self.poses[index]) for index in indices]
 
     def close(self) -> None:
         self.renderer.close()

@@ -14,26 +14,23 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from renderloop.errors import UserError
 from renderloop.io.atomic import write_bytes
+from renderloop.io.images import read_image_as
 from renderloop.render.frame import RenderedFrame
+from renderloop.rundir import names
 
 DEPTH_SCALE = 5000.0  # PNG units per metre (TUM RGB-D)
 MAX_DEPTH = 65535 / DEPTH_SCALE
 
 
-def frame_name(index: int) -> str:
-    return f"{index:06d}.png"
-
-
 def frame_paths(run_dir: Path, index: int, sensor: bool) -> dict[str, Path]:
-    names = ["rgb", "depth", "masks"] + (["depth_sensor"] if sensor else [])
-    return {name: run_dir / name / frame_name(index) for name in names}
+    streams = [names.RGB, names.DEPTH, names.MASKS] + ([names.DEPTH_SENSOR] if sensor else [])
+    return {stream: run_dir / names.frame_file(stream, index) for stream in streams}
 
 
 def sensor_depth_dir(run_dir: Path) -> str:
     """The depth a real camera would give: the sensor stream when the run rendered one, else the ideal depth."""
-    return "depth_sensor" if (Path(run_dir) / "depth_sensor").is_dir() else "depth"
+    return names.DEPTH_SENSOR if (Path(run_dir) / names.DEPTH_SENSOR).is_dir() else names.DEPTH
 
 
 def frame_done(run_dir: Path, index: int, sensor: bool) -> bool:
@@ -58,36 +55,31 @@ def decode_depth(units: np.ndarray) -> np.ndarray:
 
 def encode_frame(frame: RenderedFrame, sensor_depth: np.ndarray | None) -> dict[str, bytes]:
     """PNG bytes of each file of a frame, keyed by directory; workers send these to the one writer."""
-    files = {"rgb": _png(frame.rgb), "depth": _png(encode_depth(frame.depth))}
+    files = {names.RGB: _png(frame.rgb), names.DEPTH: _png(encode_depth(frame.depth))}
     if sensor_depth is not None:
-        files["depth_sensor"] = _png(encode_depth(sensor_depth))
-    files["masks"] = _png(frame.mask.astype(np.uint16))
+        files[names.DEPTH_SENSOR] = _png(encode_depth(sensor_depth))
+    files[names.MASKS] = _png(frame.mask.astype(np.uint16))
     return files
 
 
 def write_frame(run_dir: Path, index: int, files: dict[str, bytes]) -> None:
     """Masks last: its presence says the frame's other files are complete too."""
-    for name in sorted(files, key=lambda n: n == "masks"):
-        path = run_dir / name / frame_name(index)
+    for name in sorted(files, key=lambda n: n == names.MASKS):
+        path = run_dir / names.frame_file(name, index)
         path.parent.mkdir(parents=True, exist_ok=True)
         write_bytes(path, files[name])
 
 
 def read_png(path: Path, dtype: type) -> np.ndarray:
-    try:
-        with Image.open(path) as image:
-            array = np.array(image)
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such file") from None
-    except (OSError, ValueError, SyntaxError):
-        raise UserError(f"{path}: not a readable PNG") from None
-    return array.astype(dtype)
+    """A frame file as stored, size-checked before decoding: anything but a readable PNG whose values fit `dtype`
+    is a UserError."""
+    return read_image_as(path, dtype, formats=("PNG",))
 
 
 def read_frame(run_dir: Path, index: int) -> RenderedFrame:
     paths = frame_paths(run_dir, index, sensor=False)
     return RenderedFrame(
-        rgb=read_png(paths["rgb"], np.uint8),
-        depth=decode_depth(read_png(paths["depth"], np.uint16)),
-        mask=read_png(paths["masks"], np.uint16),
+        rgb=read_png(paths[names.RGB], np.uint8),
+        depth=decode_depth(read_png(paths[names.DEPTH], np.uint16)),
+        mask=read_png(paths[names.MASKS], np.uint16),
     )

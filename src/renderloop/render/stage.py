@@ -3,130 +3,127 @@
 `render.json` records what the frames in the directory were rendered from (poses,
 scene, camera, renderer settings, backend). A render that finds the same record
 resumes, skipping finished frames; one that finds another record starts over,
-so frames of two different inputs never mix.
+removing only the frames and lists renderloop wrote, so frames of two different
+inputs never mix and nothing else in the directory is touched.
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
 import shutil
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from renderloop.config import BouncesConfig, Config
 from renderloop.errors import UserError
-from renderloop.io import rundir
-from renderloop.io.atomic import write_json, write_text
-from renderloop.io.tum import read_tum
-from renderloop.render.camera import Intrinsics, write_camera_info
+from renderloop.render.camera import Intrinsics
 from renderloop.render.contact_sheet import draw_contact_sheet
 from renderloop.render.executor import BACKENDS, render_local, render_ray
-from renderloop.render.frames import frame_done, frame_name, write_frame
-from renderloop.robot.kinematics import homogeneous
-from renderloop.scene.model import load_scene
+from renderloop.render.frames import frame_done, write_frame
+from renderloop.rundir import files, names, ownership
+from renderloop.rundir.models import RenderRecord
+from renderloop.rundir.stage import Job, Stage
 
-INPUTS = ("config.yaml", "scene.json", "groundtruth.txt")
-OUTPUTS = ("rgb.txt", "depth.txt", "camera_info.yaml", "contact_sheet.png")
-MANIFEST = "render.json"
-FRAME_DIRS = ("rgb", "depth", "depth_sensor", "masks")
-
-Progress = Callable[[int, int], None]
-
-
-def load_poses(run_dir: Path) -> tuple[np.ndarray, np.ndarray]:
-    times, positions, rotations = read_tum(run_dir / "groundtruth.txt")
-    return times, np.array([homogeneous(r, p) for r, p in zip(rotations, positions)])
+NEEDS = (names.CONFIG, names.SCENE, names.POSES)
+# Bytes a frame may take on disk at most per pixel: 8-bit RGB, then 16-bit depth, mask and sensor depth, as if
+# PNG compressed nothing. The estimate is an upper bound, so a run it admits never fills the disk halfway.
+BYTES_PER_PIXEL = {names.RGB: 3, names.DEPTH: 2, names.MASKS: 2, names.DEPTH_SENSOR: 2}
 
 
 def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def _manifest(run_dir: Path, config: Config, backend: str, poses: np.ndarray) -> dict:
-    return {
-        "backend": backend,
-        "frames": len(poses),
-        "poses_sha256": _sha256(np.ascontiguousarray(poses).tobytes()),
-        "scene_sha256": _sha256((run_dir / "scene.json").read_bytes()),
-        "seed": config.seed,
-        "camera": config.camera.model_dump(mode="json"),
+def render_record(run_dir: Path, config: Config, poses: np.ndarray) -> RenderRecord:
+    return RenderRecord(
+        backend=config.renderer.backend,
+        frames=len(poses),
+        poses_sha256=_sha256(np.ascontiguousarray(poses).tobytes()),
+        scene_sha256=_sha256((run_dir / names.SCENE).read_bytes()),
+        seed=config.seed,
+        camera=config.camera.model_dump(mode="json"),
         # the thread count says how fast frames come, not what they hold (kept at 0 so older records still match)
-        "renderer": {**config.renderer.model_dump(mode="json", exclude={"backend"}), "threads": 0},
-    }
+        renderer={**config.renderer.model_dump(mode="json", exclude={"backend"}), "threads": 0},
+    )
 
 
-def _recorded(run_dir: Path) -> dict | None:
-    path = run_dir / MANIFEST
-    try:
-        recorded = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else None
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        return None  # a damaged record means unknown frames: start over
-    if isinstance(recorded, dict) and isinstance(recorded.get("renderer"), dict):
+def _recorded(run_dir: Path) -> RenderRecord | None:
+    recorded = files.read_render_record(run_dir)
+    if recorded is not None and "bounces" not in recorded.renderer:
         # a record from before the bounces were configurable: its frames had today's defaults, then hard-coded
-        recorded["renderer"] = {"bounces": BouncesConfig().model_dump(mode="json"), **recorded["renderer"]}
+        renderer = {"bounces": BouncesConfig().model_dump(mode="json"), **recorded.renderer}
+        recorded = recorded.model_copy(update={"renderer": renderer})
     return recorded
 
 
-def _start_over(run_dir: Path, manifest: dict) -> None:
-    for name in (*FRAME_DIRS, *OUTPUTS):
-        target = run_dir / name
-        shutil.rmtree(target) if target.is_dir() else target.unlink(missing_ok=True)
-    write_json(run_dir / MANIFEST, manifest)
+def _same_record(run_dir: Path, config: Config) -> bool:
+    return _recorded(run_dir) == render_record(run_dir, config, files.read_poses(run_dir)[1])
 
 
-def _index_file(run_dir: Path, name: str, times: np.ndarray) -> None:
-    lines = [f"# {name} images of renderloop, TUM RGB-D layout", "# timestamp filename"]
-    lines += [f"{t:.6f} {name}/{frame_name(i)}" for i, t in enumerate(times)]
-    write_text(run_dir / f"{name}.txt", "\n".join(lines) + "\n")
+def check_disk(run_dir: Path, config: Config, frames: int) -> None:
+    """Refuse, before the first frame, a render whose frames cannot fit on the disk."""
+    streams = [names.RGB, names.DEPTH, names.MASKS] + ([names.DEPTH_SENSOR] if config.renderer.depth_noise.enabled else [])
+    need = frames * config.camera.width * config.camera.height * sum(BYTES_PER_PIXEL[s] for s in streams)
+    free = shutil.disk_usage(run_dir).free
+    if need > free:
+        raise UserError(f"{run_dir}: {frames} frames of {config.camera.width}x{config.camera.height} need up to "
+                        f"{need / 1e9:.1f} GB but the disk has {free / 1e9:.1f} GB free; lower camera.rate_hz or the image size")
 
 
-def run_render(
-    run_dir: Path, config: Config, force: bool = False, backend: str | None = None, workers: int = 1,
-    executor: str = "local", address: str | None = None, progress: Progress | None = None,
-) -> bool:
-    run_dir = Path(run_dir)
-    backend = backend or config.renderer.backend
-    if backend not in BACKENDS:
-        raise UserError(f"unknown backend {backend!r} (choose from: {', '.join(BACKENDS)})")
-    if executor not in ("local", "ray"):
-        raise UserError(f"unknown executor {executor!r} (choose from: local, ray)")
-    rundir.require(run_dir, INPUTS, "fly")
-    times, poses = load_poses(run_dir)
-    manifest = _manifest(run_dir, config, backend, poses)
-    same = _recorded(run_dir) == manifest
-    if not force and same and rundir.complete(run_dir, OUTPUTS, INPUTS):
-        if progress:
-            progress(len(poses), len(poses))
-        return False
-    if force or not same:
-        _start_over(run_dir, manifest)
+def _render(run_dir: Path, config: Config, job: Job) -> None:
+    backend = config.renderer.backend
+    if job.executor not in ("local", "ray"):
+        raise UserError(f"unknown executor {job.executor!r} (choose from: local, ray)")
+    times, poses = files.read_poses(run_dir)
+    record = render_record(run_dir, config, poses)
+    if job.force or _recorded(run_dir) != record:
+        clear_frames(run_dir)
+        files.write_model(run_dir / names.RENDER_RECORD, record)
 
     sensor = config.renderer.depth_noise.enabled
     todo = [i for i in range(len(poses)) if not frame_done(run_dir, i, sensor)]
     done = len(poses) - len(todo)
-    if progress:
-        progress(done, len(poses))
+    if job.progress:
+        job.progress(done, len(poses))
     if todo:
-        scene = load_scene(run_dir / "scene.json")
-        if executor == "ray":
-            batches = render_ray(config, scene, poses, backend, todo, workers, address)
+        check_disk(run_dir, config, len(todo))
+        scene = files.read_scene(run_dir)
+        if job.executor == "ray":
+            batches = render_ray(config, scene, poses, backend, todo, job.workers, job.address)
         else:
-            batches = render_local(config, scene, poses, backend, todo, workers)
+            batches = render_local(config, scene, poses, backend, todo, job.workers)
         for batch in batches:
-            for index, files, _ in batch:
-                write_frame(run_dir, index, files)
+            for index, frame_files, _ in batch:
+                write_frame(run_dir, index, frame_files)
             done += len(batch)
-            if progress:
-                progress(done, len(poses))
+            if job.progress:
+                job.progress(done, len(poses))
 
-    write_camera_info(run_dir / "camera_info.yaml", Intrinsics.from_config(config.camera))
-    _index_file(run_dir, "rgb", times)
-    _index_file(run_dir, "depth", times)
-    if sensor:
-        _index_file(run_dir, "depth_sensor", times)
-    draw_contact_sheet(run_dir, len(poses), run_dir / "contact_sheet.png")
-    return True
+    finish_render(run_dir, config, times)
 
+
+def clear_frames(run_dir: Path) -> None:
+    """Remove the frames and lists renderloop rendered here before, and nothing else."""
+    ownership.remove_recorded(run_dir, (*names.FRAME_DIRS, *map(names.frames_index, names.FRAME_DIRS), *names.OUTPUTS["render"]))
+
+
+def finish_render(run_dir: Path, config: Config, times: np.ndarray) -> None:
+    """With every frame written: the camera's intrinsics, the TUM lists of each stream and the contact sheet."""
+    files.write_camera_info(run_dir, Intrinsics.from_config(config.camera))
+    for stream in (names.RGB, names.DEPTH) + ((names.DEPTH_SENSOR,) if config.renderer.depth_noise.enabled else ()):
+        files.write_frames_index(run_dir, stream, times)
+    draw_contact_sheet(run_dir, len(times), run_dir / names.CONTACT_SHEET)
+
+
+STAGE = Stage("render", needs=NEEDS, work=_render, current=_same_record)
+run_render = STAGE.run
+
+
+def with_backend(config: Config, backend: str | None) -> Config:
+    """The config with another renderer backend (`renderloop render --backend`): the record says which made the frames."""
+    if backend is None:
+        return config
+    if backend not in BACKENDS:
+        raise UserError(f"unknown backend {backend!r} (choose from: {', '.join(BACKENDS)})")
+    return config.model_copy(update={"renderer": config.renderer.model_copy(update={"backend": backend})})

@@ -7,30 +7,31 @@ from pathlib import Path
 import mujoco
 
 from renderloop.config import Config
-from renderloop.io import rundir
-from renderloop.io.atomic import dumps_json, write_text
+from renderloop.io.atomic import write_text
+from renderloop.rundir import files, names
+from renderloop.rundir.stage import Job, Stage, claim
 from renderloop.scene.generate import generate_scene
 from renderloop.scene.topview import draw_top_view
 from renderloop.scene.world import world_xml
 
-OUTPUTS = ("config.yaml", "scene.json", "world.xml", "scene_topview.png")
+
+def _same_config(run_dir: Path, config: Config) -> bool:
+    """A run directory belongs to one config: another one is refused (unless --force), never mixed in."""
+    files.check_config(run_dir, config)
+    return True
 
 
-def run_scene(run_dir: Path, config: Config, force: bool = False) -> bool:
-    """Make the scene files; False when they were already complete for this config.
-
-    Everything is generated and checked in memory first, so bad input leaves no file behind.
-    """
-    run_dir = rundir.check_target(run_dir)
-    if not force:
-        rundir.check_config(run_dir, config)
-        if rundir.complete(run_dir, OUTPUTS):
-            return False
+def _scene(run_dir: Path, config: Config, job: Job) -> None:
+    """Everything is generated and checked in memory first, so bad input leaves no file behind."""
     scene = generate_scene(config)
     world = world_xml(scene, config)
     mujoco.MjModel.from_xml_string(world)  # a world MuJoCo rejects must never reach the disk
-    rundir.write_config(run_dir, config)
-    write_text(run_dir / "world.xml", world)
-    draw_top_view(scene, run_dir / "scene_topview.png")
-    write_text(run_dir / "scene.json", dumps_json(scene.model_dump(mode="json")))
-    return True
+    claim(run_dir)
+    files.write_config(run_dir, config)
+    write_text(run_dir / names.WORLD, world)
+    draw_top_view(scene, run_dir / names.TOP_VIEW)
+    files.write_scene(run_dir, scene)
+
+
+STAGE = Stage("scene", needs=(), work=_scene, current=_same_config)
+run_scene = STAGE.run

@@ -35,6 +35,18 @@ class Reference:
     qdd: np.ndarray
 
 
+@dataclass(frozen=True)
+class Snapshot:
+    """The robot at one control tick, before that tick's controls act."""
+
+    position: np.ndarray  # body, world
+    quaternion: np.ndarray  # body, qx qy qz qw
+    joints: np.ndarray
+    camera_position: np.ndarray  # optical frame, world
+    camera_rotation: np.ndarray  # (3, 3) optical frame to world
+    contacts: int  # robot-world contacts
+
+
 @dataclass
 class FlightLog:
     t: np.ndarray
@@ -47,6 +59,29 @@ class FlightLog:
     camera_rotation: np.ndarray  # (N, 3, 3)
     contacts: np.ndarray
     saturated: np.ndarray
+
+    @classmethod
+    def of(cls, t: np.ndarray, reference: np.ndarray, snapshots: list[Snapshot], rotor_speeds: list[np.ndarray],
+           saturated: list[bool]) -> FlightLog:
+        """The log of ticks flown: the state at each tick, and the rotor speeds and saturation its controls gave."""
+        count = len(snapshots)
+        stack = lambda name, shape: np.array([getattr(s, name) for s in snapshots]).reshape(count, *shape)  # noqa: E731
+        return cls(t=np.asarray(t), position=stack("position", (3,)), quaternion=stack("quaternion", (4,)),
+                   joints=stack("joints", (3,)), rotor_speeds=np.array(rotor_speeds).reshape(count, 4),
+                   reference=np.asarray(reference), camera_position=stack("camera_position", (3,)),
+                   camera_rotation=stack("camera_rotation", (3, 3)), contacts=np.array([s.contacts for s in snapshots], dtype=int),
+                   saturated=np.array(saturated, dtype=bool))
+
+
+def flight_table(log: FlightLog, planned_camera: np.ndarray) -> np.ndarray:
+    yaw = np.arctan2(2 * (log.quaternion[:, 3] * log.quaternion[:, 2] + log.quaternion[:, 0] * log.quaternion[:, 1]),
+                     1 - 2 * (log.quaternion[:, 1] ** 2 + log.quaternion[:, 2] ** 2))
+    errors = np.column_stack([log.reference[:, :3] - log.position, np.remainder(log.reference[:, 3] - yaw + np.pi, 2 * np.pi) - np.pi])
+    camera_error = np.linalg.norm(log.camera_position - planned_camera, axis=1)
+    return np.column_stack([
+        log.t, log.position, log.quaternion, log.joints, log.rotor_speeds, log.reference,
+        errors, log.camera_position, camera_error, log.contacts, log.saturated,
+    ])
 
 
 def yaw_quaternion_wxyz(yaw: float) -> np.ndarray:
@@ -87,6 +122,11 @@ class Flight:
         data.qpos[self.joint_qpos] = dofs[4:7]
         self.speeds = np.full(4, self.rotors.hover_speed(self.total_mass))
         mujoco.mj_forward(self.model, data)
+
+    def snapshot(self) -> Snapshot:
+        data = self.data
+        return Snapshot(data.qpos[:3].copy(), data.qpos[XYZW], data.qpos[self.joint_qpos], data.site_xpos[self.camera].copy(),
+                        data.site_xmat[self.camera].reshape(3, 3).copy(), self.contacts())
 
     def contacts(self) -> int:
         count = self.data.ncon
@@ -143,22 +183,11 @@ def resample(reference: Reference, rate_hz: float, hold: float) -> Reference:
 def fly(model: mujoco.MjModel, config: Config, trajectory: Reference, hold: float = 1.0) -> FlightLog:
     flight = Flight(model, config, config.seed)
     reference = resample(trajectory, config.controller.rate_hz, hold)
-    count = len(reference.t)
-    log = FlightLog(
-        t=reference.t, position=np.empty((count, 3)), quaternion=np.empty((count, 4)), joints=np.empty((count, 3)),
-        rotor_speeds=np.empty((count, 4)), reference=reference.q, camera_position=np.empty((count, 3)),
-        camera_rotation=np.empty((count, 3, 3)), contacts=np.zeros(count, dtype=int), saturated=np.zeros(count, dtype=bool),
-    )
+    snapshots, speeds, saturated = [], [], []
     flight.reset(reference.q[0])
-    data = flight.data
-    for k in range(count):
-        log.position[k] = data.qpos[:3]
-        log.quaternion[k] = data.qpos[XYZW]
-        log.joints[k] = data.qpos[flight.joint_qpos]
-        log.camera_position[k] = data.site_xpos[flight.camera]
-        log.camera_rotation[k] = data.site_xmat[flight.camera].reshape(3, 3)
-        log.contacts[k] = flight.contacts()
+    for k in range(len(reference.t)):
+        snapshots.append(flight.snapshot())
         flight.tick(reference.q[k], reference.qd[k], reference.qdd[k])
-        log.rotor_speeds[k] = flight.speeds
-        log.saturated[k] = flight.uav.saturated
-    return log
+        speeds.append(flight.speeds.copy())
+        saturated.append(bool(flight.uav.saturated))
+    return FlightLog.of(reference.t, reference.q, snapshots, speeds, saturated)

@@ -1,1 +1,1 @@
-"""Training the pepper detector (needs the `train` extra: torch, torchvision, onnx, pycocotools)."""
+"""Training the pepper detector (needs the `train` extra: torch, torchvision, onnx; pycocotools is a base dependency)."""

@@ -14,7 +14,7 @@ import json
 import math
 import pickle
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -67,6 +67,27 @@ def _save_checkpoint(path: Path, state: dict) -> None:
         torch.save(state, tmp)
 
 
+def _batches(loader: torch.utils.data.DataLoader) -> Iterator:
+    """The loader's batches; a bad image found in a loading worker comes back with the worker's traceback in its
+    message, so only its last line (ours) is kept."""
+    try:
+        yield from loader
+    except UserError as error:
+        last = str(error).strip().splitlines()[-1]
+        raise UserError(last.removeprefix(f"{UserError.__module__}.{UserError.__name__}: ")) from None
+
+
+def _load_checkpoint(path: Path, device: torch.device) -> dict:
+    """The checkpoint an earlier run left at this --out; a file there that is not one is not ours to resume or replace."""
+    try:
+        state = torch.load(path, map_location=device, weights_only=True)  # tensors and plain data: nothing runs
+    except (OSError, RuntimeError, TypeError, EOFError, pickle.UnpicklingError) as error:
+        raise UserError(f"{path}: not a renderloop training checkpoint ({type(error).__name__}); give another --out") from None
+    if not isinstance(state, dict) or not {"model", "optimizer", "record", "epoch"} <= state.keys():
+        raise UserError(f"{path}: not a renderloop training checkpoint; give another --out")
+    return state
+
+
 def _initial_weights(path: Path) -> dict:
     """The model weights of an earlier run's checkpoint: fine-tuning on a grown dataset starts there."""
     try:
@@ -82,8 +103,12 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
     datasets, out = [Path(d) for d in (datasets if isinstance(datasets, list) else [datasets])], Path(out)
     if out.suffix != ".onnx":
         raise UserError(f"--out {out}: the model file must end in .onnx")
-    out.parent.mkdir(parents=True, exist_ok=True)
     checkpoint_path = out.with_suffix(".ckpt")
+    if not checkpoint_path.is_file():  # a resumed run's files are its own; without a checkpoint, nothing here is ours
+        for path in (out, out.with_suffix(".json")):
+            if path.exists():
+                raise UserError(f"--out {out}: {path} exists and no training checkpoint beside it; give another --out")
+    out.parent.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(settings.seed)
     parts = [PepperBoxes(dataset, "train", augment=True) for dataset in datasets]
     val_sets = [PepperBoxes(dataset, "val", augment=False) for dataset in datasets]
@@ -108,7 +133,7 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
               "train_images": len(train_set), "val_images": [len(v) for v in val_sets], "classes": list(CLASSES), "history": []}
     start_epoch = 0
     if checkpoint_path.is_file():
-        state = torch.load(checkpoint_path, map_location=run_device, weights_only=True)  # tensors and plain data: nothing runs
+        state = _load_checkpoint(checkpoint_path, run_device)
         if state["record"]["settings"] != record["settings"] or state["record"]["train_images"] != len(train_set):
             raise UserError(f"{checkpoint_path}: a checkpoint of other settings or data; delete it to start over")
         model.load_state_dict(state["model"])
@@ -123,7 +148,7 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
     for epoch in range(start_epoch, settings.epochs):
         model.train()
         began, seen, losses = time.perf_counter(), 0, []
-        for images, targets in loader:
+        for images, targets in _batches(loader):
             images = [image.to(run_device) for image in images]
             targets = [{"boxes": t["boxes"].to(run_device), "labels": t["labels"].to(run_device)} for t in targets]
             loss = sum(model(images, targets).values())

@@ -1,0 +1,93 @@
+"""Real-time factor of the closed loop online: the robot flies, the camera renders at its rate, perception runs on every frame.
+
+Paper preset, the scan's first `--seconds` simulated seconds, in one run side by side:
+- flight alone (the Simulation stepped, no sensor),
+- flight + raster camera at 5 Hz (MuJoCo, in this process) + online detection and counting,
+- flight + Cycles camera at `--cycles-rate` in `--workers` processes + online detection (with --cycles),
+  and how long the physics waited for frames: it waits only when perception asks for a frame that is
+  not rendered yet, never while a frame renders that nobody needs yet.
+Goal (issue 23): at least 5x real time with the raster camera at 5 Hz and detection, on 2 cores.
+
+    .venv/bin/python benchmarks/loop.py [--seconds 20] [--repeats 3] [--cycles] [--workers 2] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+
+from common import summary
+
+from renderloop.config import Config, load_config
+from renderloop.counting.online import OnlineCounter
+from renderloop.loop.simulation import Simulation
+from renderloop.loop.stage import OnlinePerception
+
+
+def _config(backend: str, rate_hz: float) -> Config:
+    data = load_config("paper", seed=7).model_dump(mode="json")
+    data["renderer"]["backend"] = backend
+    data["camera"]["rate_hz"] = rate_hz
+    return Config.model_validate(data)
+
+
+def closed_loop(run_dir: Path, config: Config, seconds: float, camera: bool, workers: int = 1) -> tuple[float, float, int]:
+    """Simulated seconds per wall second, seconds spent waiting for frames, frames taken."""
+    with Simulation(config, run_dir) as sim:
+        sim.follow(sim.scan_trajectory())
+        cam = sim.add_camera(workers=workers) if camera else None
+        perception = OnlinePerception(config, OnlineCounter(sim.scene, config.counting, config.seed)) if camera else None
+        taken, waited = 0, 0.0
+        start = time.perf_counter()
+        while sim.t < seconds and not sim.finished:
+            sim.step()
+            while cam is not None and taken < len(cam) and cam.ready(taken):
+                perception.take(cam.frame(taken))
+                taken += 1
+        if cam is not None:
+            before = time.perf_counter()
+            for frame in cam.frames_until(sim.t)[taken:]:  # the end of the run: the last frames are waited for
+                perception.take(frame)
+                taken += 1
+            waited = time.perf_counter() - before
+            perception.counter.counts()
+        return sim.t / (time.perf_counter() - start), waited, taken
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=20.0, help="simulated seconds of the scan per repeat")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--cycles", action="store_true", help="also the Cycles camera (slow: about 1 s a frame a core)")
+    parser.add_argument("--cycles-rate", type=float, default=1.0, help="Cycles camera rate, Hz")
+    parser.add_argument("--workers", type=int, default=2, help="Cycles render processes")
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+
+    rows: dict[str, dict] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        run_dir = Path(tmp) / "run"
+        raster = _config("raster", 5.0)
+        closed_loop(run_dir, raster, 1.0, camera=True)  # scene, plan, detector and GL context made once, outside the timing
+        rows["flight alone"] = summary([closed_loop(run_dir, raster, args.seconds, camera=False)[0] for _ in range(args.repeats)])
+        raster_runs = [closed_loop(run_dir, raster, args.seconds, camera=True) for _ in range(args.repeats)]
+        rows["raster camera 5 Hz + detection"] = summary([r[0] for r in raster_runs])
+        if args.cycles:
+            cycles_dir = Path(tmp) / "cycles"
+            cycles = _config("cycles", args.cycles_rate)
+            runs = [closed_loop(cycles_dir, cycles, args.seconds, camera=True, workers=args.workers)]
+            rows[f"Cycles camera {args.cycles_rate:g} Hz, {args.workers} workers + detection"] = summary([r[0] for r in runs])
+            rows["  of which waiting for the last frames, s"] = summary([r[1] for r in runs])
+    print(f"closed loop online, paper preset seed 7, {args.seconds:g} s simulated, {args.repeats} repeats")
+    print(f"{'figure (real-time factor)':<58}{'median':>10}{'min':>10}{'max':>10}")
+    for name, row in rows.items():
+        print(f"{name:<58}{row['median']:>10.2f}{row['min']:>10.2f}{row['max']:>10.2f}")
+    if args.json:
+        args.json.write_text(json.dumps(rows, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()

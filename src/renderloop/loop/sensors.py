@@ -1,0 +1,200 @@
+"""The camera in the loop: it fires at its instants while the robot flies, and frames arrive as they are rendered.
+
+A frame is asked for at the camera's instant and rendered by `renderloop.render.executor.FrameWorker`,
+the same code and the same per-frame noise seed as `renderloop render`, so a frame rendered in the
+loop is byte for byte the frame a batch render of that pose gives. Raster frames are rendered at
+once in this process; Cycles frames in worker processes (or Ray actors), so the physics keeps
+stepping while they render and waits only when a consumer asks for a frame that is not there yet.
+Results are keyed by frame index, so nothing depends on which worker finished first.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor
+from dataclasses import dataclass, field
+from functools import cached_property
+from multiprocessing import get_context
+
+import numpy as np
+from PIL import Image
+
+from renderloop.config import Config
+from renderloop.errors import UserError
+from renderloop.io.tum import as_stored
+from renderloop.render.executor import (
+    BACKENDS,
+    FrameWorker,
+    ray_session,
+    spawnable_sys_path,
+    threads_per_worker,
+)
+from renderloop.render.frames import decode_depth
+from renderloop.robot.kinematics import homogeneous
+from renderloop.rundir import names
+from renderloop.scene.model import Scene
+from renderloop.sim.flight import Snapshot
+
+
+def _decode(png: bytes) -> np.ndarray:
+    with Image.open(io.BytesIO(png)) as image:
+        return np.array(image)
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One camera frame: when, where from (T_world_optical), and its images as the run directory stores them."""
+
+    index: int
+    timestamp: float
+    pose: np.ndarray
+    files: dict[str, bytes] = field(repr=False)  # PNG bytes by stream: rgb, depth, masks (and depth_sensor)
+
+    @cached_property
+    def rgb(self) -> np.ndarray:
+        return _decode(self.files[names.RGB])
+
+    @cached_property
+    def depth(self) -> np.ndarray:
+        """Planar depth, m (0 = no return): the sensor stream when the camera has one, as a real camera gives."""
+        return decode_depth(_decode(self.files.get(names.DEPTH_SENSOR, self.files[names.DEPTH])))
+
+    @cached_property
+    def ideal_depth(self) -> np.ndarray:
+        return decode_depth(_decode(self.files[names.DEPTH]))
+
+    @cached_property
+    def mask(self) -> np.ndarray:
+        """Pepper instance ids (0 = not a pepper): the simulator's truth."""
+        return _decode(self.files[names.MASKS])
+
+
+_worker: FrameWorker | None = None
+
+
+def _start_worker(config: Config, scene: Scene, backend: str) -> None:
+    global _worker
+    _worker = FrameWorker(config, scene, None, backend)
+
+
+def _render_in_worker(index: int, pose: np.ndarray) -> tuple[int, dict[str, bytes], dict[str, float]]:
+    assert _worker is not None
+    return _worker.render_pose(index, pose)
+
+
+class _Renderers:
+    """Where frames are rendered: this process (raster), local processes, or Ray actors."""
+
+    def __init__(self, config: Config, scene: Scene, backend: str, workers: int, executor: str, address: str | None):
+        if backend not in BACKENDS:
+            raise UserError(f"unknown backend {backend!r} (choose from: {', '.join(BACKENDS)})")
+        if executor not in ("local", "ray"):
+            raise UserError(f"unknown executor {executor!r} (choose from: local, ray)")
+        self.pending: dict[int, Future | object] = {}
+        self._close: list[Callable[[], None]] = []
+        if executor == "ray":
+            self._start_ray(config, scene, backend, workers, address)
+        elif backend == "raster" and workers <= 1:
+            self.local = FrameWorker(config, scene, None, backend)
+            self._close.append(self.local.close)
+        else:
+            config = threads_per_worker(config, workers)
+            pool = ProcessPoolExecutor(max(1, workers), mp_context=get_context("spawn"), initializer=_start_worker,
+                                       initargs=(config, scene, backend))
+            self.pool = pool
+            self._close.append(lambda: pool.shutdown(cancel_futures=True))
+
+    def _start_ray(self, config: Config, scene: Scene, backend: str, workers: int, address: str | None) -> None:
+        import ray
+
+        session = ray_session(workers, address)
+        session.__enter__()
+        self._close.append(lambda: session.__exit__(None, None, None))
+        actor = ray.remote(num_cpus=1)(FrameWorker)
+        config = threads_per_worker(config, workers)
+        self.actors = [actor.remote(config, scene, None, backend) for _ in range(max(1, workers))]
+        self.ray = ray
+
+    def submit(self, index: int, pose: np.ndarray) -> None:
+        if hasattr(self, "local"):
+            self.pending[index] = self.local.render_pose(index, pose)
+        elif hasattr(self, "actors"):
+            self.pending[index] = self.actors[index % len(self.actors)].render_pose.remote(index, pose)
+        else:
+            with spawnable_sys_path():  # a worker process starts on the first submission
+                self.pending[index] = self.pool.submit(_render_in_worker, index, pose)
+
+    def ready(self, index: int) -> bool:
+        job = self.pending[index]
+        if isinstance(job, Future):
+            return job.done()
+        if hasattr(self, "actors"):
+            return bool(self.ray.wait([job], timeout=0)[0])
+        return True
+
+    def result(self, index: int) -> dict[str, bytes]:
+        job = self.pending[index]
+        if isinstance(job, Future):
+            job = job.result()
+        elif hasattr(self, "actors"):
+            job = self.ray.get(job)
+        self.pending[index] = job
+        return job[1]
+
+    def close(self) -> None:
+        while self._close:
+            self._close.pop()()
+
+
+class Camera:
+    """The RGB-D camera on the arm's tip: a frame at every instant k / rate_hz of the planned motion."""
+
+    def __init__(self, config: Config, scene: Scene, control_rate_hz: float, rate_hz: float, backend: str, workers: int,
+                 executor: str, address: str | None) -> None:
+        if not 0 < rate_hz <= control_rate_hz:
+            raise UserError(f"camera rate {rate_hz} Hz: the control loop at {control_rate_hz} Hz cannot serve it "
+                            f"(0 < rate <= {control_rate_hz})")
+        self.config, self.rate_hz, self.backend = config, rate_hz, backend
+        self.renderers = _Renderers(config, scene, backend, workers, executor, address)
+        self.restart()
+
+    def restart(self) -> None:
+        """Forget the frames asked for so far (a new trajectory starts a new recording)."""
+        self.timestamps: list[float] = []
+        self.poses: list[np.ndarray] = []
+        self._frames: dict[int, Frame] = {}
+        self.renderers.pending.clear()
+
+    def observe(self, now: float, snapshot: Snapshot, end: float) -> None:
+        """Called at every control tick: ask for a frame when one of the camera's instants has come."""
+        due = len(self.timestamps) / self.rate_hz
+        if due <= end + 1e-9 and now >= due - 1e-9:
+            index = len(self.timestamps)
+            position, rotation = as_stored(snapshot.camera_position, snapshot.camera_rotation)
+            pose = homogeneous(rotation, position)  # as groundtruth.txt will hold it, so batch renders see the same pose
+            self.timestamps.append(now)
+            self.poses.append(pose)
+            self.renderers.submit(index, pose)
+
+    def __len__(self) -> int:
+        """Frames asked for so far."""
+        return len(self.timestamps)
+
+    def ready(self, index: int) -> bool:
+        return index in self._frames or self.renderers.ready(index)
+
+    def frame(self, index: int) -> Frame:
+        """Frame `index`, waiting for its render if it is not there yet."""
+        if index not in self._frames:
+            if not 0 <= index < len(self.timestamps):
+                raise UserError(f"camera frame {index}: only {len(self.timestamps)} frames were asked for")
+            self._frames[index] = Frame(index, self.timestamps[index], self.poses[index], self.renderers.result(index))
+        return self._frames[index]
+
+    def frames_until(self, t: float) -> list[Frame]:
+        """Every frame taken at or before simulation time `t`, in order; waits only for those not rendered yet."""
+        return [self.frame(i) for i, stamp in enumerate(self.timestamps) if stamp <= t + 1e-9]
+
+    def close(self) -> None:
+        self.renderers.close()

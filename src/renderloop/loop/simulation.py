@@ -1,0 +1,177 @@
+"""A simulation you can step: the robot, the reference it tracks, and the sensors that ride on it.
+
+Physics and control are those of `renderloop fly` (`renderloop.sim.flight.Flight`: the same
+controller, the same 2 ms physics step under a control tick), so stepping a trajectory
+through `Simulation` gives the flight log `fly` gives. One `Simulation` owns time: the
+controller ticks at its rate, sensors fire at theirs (a camera at its instants k / rate,
+the control tick at or after each), and the planned motion can be replaced mid-flight
+(`replan`, joined without a jump in position, velocity or acceleration).
+
+    sim = Simulation(config, "runs/online")     # makes the scene there unless it exists
+    sim.follow(sim.scan_trajectory())           # the paper's scan, planned with TOPP-RA
+    camera = sim.add_camera()                   # renders every camera instant while flying
+    sim.run_until(10.0)
+    print(sim.state.position, len(camera.frames_until(sim.t)))
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from renderloop.config import Config
+from renderloop.errors import UserError
+from renderloop.loop.reference import ReferencePlan
+from renderloop.loop.sensors import Camera
+from renderloop.planning.trajectory import Trajectory
+from renderloop.robot.kinematics import homogeneous
+from renderloop.rundir import files, names
+from renderloop.scene.model import Scene
+from renderloop.scene.stage import run_scene
+from renderloop.sim.flight import Flight, FlightLog, Reference, Snapshot
+
+HOLD = 1.0  # s the robot hovers at the end of its plan, as `renderloop fly` does
+
+
+@dataclass(frozen=True)
+class RobotState:
+    t: float  # simulation seconds
+    position: np.ndarray  # body, world frame, m
+    quaternion: np.ndarray  # body, qx qy qz qw
+    velocity: np.ndarray  # body, world frame, m/s
+    joints: np.ndarray  # q1..q3, rad
+    camera_pose: np.ndarray  # T_world_optical (4, 4)
+
+
+class Simulation:
+    """One robot in one greenhouse, stepped a control period at a time."""
+
+    def __init__(self, config: Config, run_dir: Path | str, hold: float = HOLD) -> None:
+        self.config, self.run_dir, self.hold = config, Path(run_dir), hold
+        run_scene(self.run_dir, config)  # skipped when the run directory already holds this config's scene
+        self.scene: Scene = files.read_scene(self.run_dir)
+        self.model = mujoco.MjModel.from_xml_path(str(self.run_dir / names.WORLD))
+        self.flight = Flight(self.model, config, config.seed)
+        self.rate_hz = config.controller.rate_hz
+        self.plan: ReferencePlan | None = None
+        self.tick = 0
+        self.sensors: list[Camera] = []
+        self._snapshots: list[Snapshot] = []
+        self._speeds: list[np.ndarray] = []
+        self._saturated: list[bool] = []
+
+    # What it flies ---------------------------------------------------------------------------------------------------
+
+    def scan_trajectory(self) -> Trajectory:
+        """The scan of every plant (`renderloop plan`: elliptical waypoints, TOPP-RA), planned unless it is there."""
+        from renderloop.planning.stage import run_plan
+
+        run_plan(self.run_dir, self.config)
+        table = files.read_trajectory(self.run_dir)
+        times = np.array([w.time for w in files.read_waypoints(self.run_dir)])
+        return Trajectory(table[:, 0], table[:, 1:8], table[:, 8:15], table[:, 15:22], times)
+
+    def follow(self, trajectory: Trajectory | Reference) -> None:
+        """Start over at the trajectory's first sample, hovering there at rest, and track it."""
+        reference = Reference(trajectory.t, trajectory.q, trajectory.qd, trajectory.qdd)
+        self.plan = ReferencePlan.of(reference, self.rate_hz, self.hold)
+        self.flight.reset(self.plan.q[0])
+        self.tick = 0
+        self._snapshots, self._speeds, self._saturated = [], [], []
+        for sensor in self.sensors:
+            sensor.restart()
+
+    def replan(self, waypoints: np.ndarray) -> float:
+        """From now on fly through `waypoints` (rows of q* = x, y, z, yaw, q1, q2, q3) instead of the rest of the plan,
+        joined to the current reference without a jump; returns when the new plan ends (simulation seconds)."""
+        plan = self._require_plan()
+        plan.replan(self.tick, waypoints, self.config.planner, self.hold)
+        return plan.end
+
+    def _require_plan(self) -> ReferencePlan:
+        if self.plan is None:
+            raise UserError("the simulation has no trajectory: call follow() first")
+        return self.plan
+
+    # Time -----------------------------------------------------------------------------------------------------------
+
+    @property
+    def t(self) -> float:
+        plan = self._require_plan()
+        return float(plan.t[self.tick]) if self.tick < len(plan) else self.tick / self.rate_hz
+
+    @property
+    def end(self) -> float:
+        """When the planned motion ends (the hover after it is not part of it)."""
+        return self._require_plan().end
+
+    @property
+    def finished(self) -> bool:
+        """The plan and the hover after it have been flown."""
+        return self.tick >= len(self._require_plan())
+
+    def step(self) -> None:
+        """One control period: sensors due at this instant fire, then the controller flies toward the reference."""
+        plan = self._require_plan()
+        snapshot = self.flight.snapshot()
+        now = self.t
+        for sensor in self.sensors:
+            sensor.observe(now, snapshot, plan.end)
+        q, qd, qdd = plan.at(self.tick)
+        self.flight.tick(q, qd, qdd)
+        self._snapshots.append(snapshot)
+        self._speeds.append(self.flight.speeds.copy())
+        self._saturated.append(bool(self.flight.uav.saturated))
+        self.tick += 1
+
+    def run_until(self, t: float) -> None:
+        """Step until simulation time `t` (the tick at or after it has not been flown yet)."""
+        while self.t < t - 1e-9:
+            self.step()
+
+    def run(self) -> None:
+        """Fly the rest of the plan and the hover after it."""
+        while not self.finished:
+            self.step()
+
+    # What it knows ----------------------------------------------------------------------------------------------------
+
+    @property
+    def state(self) -> RobotState:
+        snapshot, data = self.flight.snapshot(), self.flight.data
+        return RobotState(self.t, snapshot.position, snapshot.quaternion, data.qvel[:3].copy(), snapshot.joints,
+                          homogeneous(snapshot.camera_rotation, snapshot.camera_position))
+
+    @property
+    def reference(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """q*, q̇*, q̈* the controller tracks at this instant."""
+        return self._require_plan().at(self.tick)
+
+    def log(self) -> FlightLog:
+        """Everything flown so far, as `renderloop fly` logs it."""
+        plan = self._require_plan()
+        return FlightLog.of(plan.t[: self.tick], plan.q[: self.tick], self._snapshots, self._speeds, self._saturated)
+
+    # Sensors ----------------------------------------------------------------------------------------------------------
+
+    def add_camera(self, rate_hz: float | None = None, backend: str | None = None, workers: int = 1,
+                   executor: str = "local", address: str | None = None) -> Camera:
+        """The arm's RGB-D camera at `rate_hz` (default the config's), rendered by `backend` (default the config's):
+        raster in this process, Cycles in `workers` processes (or Ray tasks) so the physics keeps stepping."""
+        camera = Camera(self.config, self.scene, self.rate_hz, rate_hz or self.config.camera.rate_hz,
+                        backend or self.config.renderer.backend, workers, executor, address)
+        self.sensors.append(camera)
+        return camera
+
+    def close(self) -> None:
+        for sensor in self.sensors:
+            sensor.close()
+
+    def __enter__(self) -> Simulation:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

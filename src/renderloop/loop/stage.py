@@ -1,0 +1,87 @@
+"""`renderloop run --online`: fly, render and detect at once, the camera in the loop.
+
+The planned scan is flown in a `Simulation`; the camera asks for a frame at each of its
+instants and the physics goes on stepping while the frame renders; perception takes each
+frame as it arrives, in frame order, and feeds the online counter. What comes out is the
+run directory of the batch stages fly, render and detect, file for file (the same flight,
+the same frames, the same detections), so `count`, `report`, `export` and `eval` read it
+unchanged and count what the batch pipeline counts.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from renderloop.config import Config
+from renderloop.counting.online import OnlineCounter
+from renderloop.loop.simulation import Simulation
+from renderloop.perception.detector import Detector
+from renderloop.perception.stage import find_fruit, write_detections
+from renderloop.render.camera import Intrinsics
+from renderloop.render.frames import write_frame
+from renderloop.render.stage import clear_frames, finish_render, render_record
+from renderloop.rundir import files, names
+from renderloop.rundir.models import DetectionFrame
+from renderloop.rundir.stage import Job, Stage
+from renderloop.sim.stage import NEEDS as FLY_NEEDS
+from renderloop.sim.stage import camera_frames, write_flight
+
+
+class OnlinePerception:
+    """The detector and the fruit points on each frame in frame order, feeding an online counter."""
+
+    def __init__(self, config: Config, counter: OnlineCounter) -> None:
+        self.detector, self.settings = Detector(config.detector.model), config.detector
+        self.intrinsics = Intrinsics.from_config(config.camera)
+        self.counter = counter
+        self.frames: list[DetectionFrame] = []
+
+    def take(self, frame) -> DetectionFrame:
+        detections = find_fruit(self.detector, frame.rgb, frame.depth, frame.pose, self.settings, self.intrinsics)
+        found = DetectionFrame(index=frame.index, timestamp=round(float(frame.timestamp), 6),
+                               image=names.frame_file(names.RGB, frame.index), detections=detections)
+        self.frames.append(found)
+        self.counter.add(found)
+        return found
+
+
+def _online(run_dir: Path, config: Config, job: Job) -> None:
+    clear_frames(run_dir)  # the frames of an earlier or interrupted run: these are rendered again as the robot flies
+    with Simulation(config, run_dir) as sim:
+        sim.follow(sim.scan_trajectory())
+        camera = sim.add_camera(workers=job.workers, executor=job.executor, address=job.address)
+        perception = OnlinePerception(config, OnlineCounter(sim.scene, config.counting, config.seed))
+        written = 0
+
+        def take_ready(wait: bool) -> None:
+            """Frames are taken in order; without `wait`, only as far as they have arrived (the physics never waits)."""
+            nonlocal written
+            while written < len(camera) and (wait or camera.ready(written)):
+                frame = camera.frame(written)
+                write_frame(run_dir, frame.index, frame.files)
+                perception.take(frame)
+                written += 1
+                if job.progress:
+                    job.progress(written, max(len(camera), 1))
+
+        while not sim.finished:
+            sim.step()
+            if not sim.tick % 10:  # a look every 10 ticks is plenty for frames that come at 5 Hz at most
+                take_ready(wait=False)
+        take_ready(wait=True)
+
+        log = sim.log()
+        frames = camera_frames(log, sim.end, camera.rate_hz)
+        poses = np.array(camera.poses)
+    # the files of the batch stages, in their order, from the same flight and frames
+    write_flight(run_dir, config, log, frames)
+    files.write_model(run_dir / names.RENDER_RECORD, render_record(run_dir, config, poses))
+    finish_render(run_dir, config, log.t[frames])
+    depth_dir = names.DEPTH_SENSOR if config.renderer.depth_noise.enabled else names.DEPTH
+    write_detections(run_dir, perception.detector, config.detector, depth_dir, perception.frames)
+
+
+STAGE = Stage("online", needs=FLY_NEEDS, work=_online, covers=("fly", "render", "detect"))
+run_online = STAGE.run

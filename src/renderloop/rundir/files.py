@@ -1,0 +1,309 @@
+"""A typed reader and writer for every file of a run directory.
+
+Stages, the report, the evaluation and the exporters read each other's files only
+through here, so a format lives in one place. Every reader turns a missing, damaged
+or hand-edited file into one UserError line naming the file (and the field, for JSON);
+every writer writes atomically (`renderloop.io.atomic`) into a directory renderloop
+owns (`renderloop.rundir.ownership`).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path, PurePosixPath
+from typing import TypeVar
+
+import numpy as np
+from pydantic import BaseModel, ValidationError
+
+from renderloop.config import Config, load_resolved
+from renderloop.errors import UserError, field_path
+from renderloop.io.atomic import dumps_json, write_text
+from renderloop.io.csvtable import read_csv, write_csv
+from renderloop.io.tum import read_tum, write_tum
+from renderloop.planning.trajectory import HEADER as TRAJECTORY_HEADER
+from renderloop.planning.waypoints import Waypoint
+from renderloop.render.camera import Intrinsics, camera_info_yaml, parse_camera_info
+from renderloop.robot.kinematics import homogeneous
+from renderloop.rundir import names
+from renderloop.rundir.models import Counts, Detections, DetectionScores, Harvest, RenderRecord, Timings
+from renderloop.scene.model import Scene, load_scene
+
+Model = TypeVar("Model", bound=BaseModel)
+
+WAYPOINT_HEADER = ["index", "kind", "plant", "side", "t", "x", "y", "z", "yaw", "q1", "q2", "q3"]
+WAYPOINT_KINDS = ("start", "scan", "transit", "end")
+FLIGHT_HEADER = [
+    "t", "x", "y", "z", "qx", "qy", "qz", "qw", "q1", "q2", "q3", "w1", "w2", "w3", "w4",
+    "ref_x", "ref_y", "ref_z", "ref_yaw", "ref_q1", "ref_q2", "ref_q3",
+    "err_x", "err_y", "err_z", "err_yaw", "cam_x", "cam_y", "cam_z", "cam_err", "contacts", "saturated",
+]
+FLIGHT_FORMAT = ["%.6f"] * 30 + ["%d", "%d"]
+POSES_COMMENT = (
+    "renderloop ground truth: pose of the camera optical frame (x right, y down, z forward)\n"
+    "in the world frame (ENU, z up), from the simulated arm; time in simulation seconds"
+)
+
+
+def _missing(run_dir: Path, name: str) -> UserError:
+    return UserError(f"{run_dir}: missing {name} (run `renderloop {names.made_by(name)}` first)")
+
+
+def require(run_dir: Path, needed: tuple[str, ...]) -> None:
+    """Refuse to go on while files an earlier stage writes are missing, naming the stage to run."""
+    missing = [name for name in needed if not (Path(run_dir) / name).is_file()]
+    if missing:
+        stage = names.made_by(missing[0])  # the earliest stage not run: what it writes, not what later ones would
+        listed = ", ".join(name for name in missing if names.made_by(name) == stage)
+        raise UserError(f"{run_dir}: missing {listed} (run `renderloop {stage}` first)")
+
+
+# JSON files ---------------------------------------------------------------------------------------------------------
+
+def read_model(path: Path, model: type[Model]) -> Model:
+    """A JSON file as its model; missing, unreadable or invalid is one line naming the file and the field."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such file") from None
+    try:
+        return model.model_validate_json(data)
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        field = field_path(error["loc"])
+        message = "unknown field" if error["type"] == "extra_forbidden" else error["msg"].removeprefix("Value error, ")
+        raise UserError(f"{path}: {field + ': ' if field else ''}{message}") from None
+
+
+def write_model(path: Path, document: BaseModel) -> None:
+    write_text(path, dumps_json(document.model_dump(mode="json")))
+
+
+def read_detections(run_dir: Path, frame_count: int) -> Detections:
+    """`detections.json`, checked against the run: every frame a frame of groundtruth.txt, once, and its image a
+    file of the run, so counts are never made from another run's detections."""
+    run_dir = Path(run_dir)
+    path = run_dir / names.DETECTIONS
+    if not path.is_file():
+        raise _missing(run_dir, names.DETECTIONS)
+    data = read_model(path, Detections)
+    seen: set[int] = set()
+    for number, frame in enumerate(data.frames):
+        where = f"{path}: frames.{number}"
+        if frame.index >= frame_count:
+            raise UserError(f"{where}: index {frame.index} but {names.POSES} has {frame_count} frames")
+        if frame.index in seen:
+            raise UserError(f"{where}: frame index {frame.index} appears twice")
+        seen.add(frame.index)
+        image = PurePosixPath(frame.image)
+        if image.is_absolute() or ".." in image.parts or not (run_dir / image).is_file():
+            raise UserError(f"{where}: image {frame.image!r} is not a file of {run_dir}")
+    return data
+
+
+def read_counts(run_dir: Path) -> Counts:
+    path = Path(run_dir) / names.COUNTS
+    if not path.is_file():
+        raise _missing(run_dir, names.COUNTS)
+    return read_model(path, Counts)
+
+
+def read_harvest(run_dir: Path) -> Harvest:
+    path = Path(run_dir) / names.HARVEST
+    if not path.is_file():
+        raise _missing(run_dir, names.HARVEST)
+    return read_model(path, Harvest)
+
+
+def read_detection_scores(run_dir: Path) -> DetectionScores:
+    path = Path(run_dir) / names.DETECTION_SCORES
+    if not path.is_file():
+        raise _missing(run_dir, names.DETECTION_SCORES)
+    return read_model(path, DetectionScores)
+
+
+def read_timings(run_dir: Path) -> dict[str, float]:
+    path = Path(run_dir) / names.TIMINGS
+    return read_model(path, Timings).root if path.is_file() else {}
+
+
+def record_timing(run_dir: Path, stage: str, seconds: float) -> None:
+    """Keep the seconds of the last run of each stage; a skipped stage (0 s) keeps its earlier time."""
+    try:
+        timings = read_timings(run_dir)
+    except UserError:
+        timings = {}  # a damaged record of times is not worth stopping a run for: it is written anew
+    if seconds > 0 or stage not in timings:
+        updated = {**timings, stage: round(seconds, 2)}
+        if updated != timings:
+            write_model(Path(run_dir) / names.TIMINGS, Timings(updated))
+
+
+def read_render_record(run_dir: Path) -> RenderRecord | None:
+    """What the frames in the directory were rendered from; None when there is no usable record (then they are redone)."""
+    try:
+        return read_model(Path(run_dir) / names.RENDER_RECORD, RenderRecord)
+    except UserError:
+        return None
+
+
+# The config and the scene -----------------------------------------------------------------------------------------
+
+def read_config(run_dir: Path) -> Config:
+    path = Path(run_dir) / names.CONFIG
+    if not path.is_file():
+        raise UserError(f"{run_dir}: not a run directory (no {names.CONFIG}; run `renderloop scene` first)")
+    return load_resolved(path)
+
+
+def write_config(run_dir: Path, config: Config) -> None:
+    write_text(Path(run_dir) / names.CONFIG, config.to_yaml())
+
+
+def _what_it_computes(config: Config) -> Config:
+    """The config less the renderer's thread count, which decides how fast frames come, not what they hold."""
+    return config.model_copy(update={"renderer": config.renderer.model_copy(update={"threads": 0})})
+
+
+def check_config(run_dir: Path, config: Config) -> None:
+    """Refuse to add files of one config to a run directory made with another: mixing two seeds' files in one
+    directory would make every later figure a lie."""
+    path = Path(run_dir) / names.CONFIG
+    if path.is_file() and _what_it_computes(load_resolved(path)) != _what_it_computes(config):
+        raise UserError(f"{path}: this run directory was made with another config; use --force to start it again, or another --out")
+
+
+def read_scene(run_dir: Path) -> Scene:
+    path = Path(run_dir) / names.SCENE
+    if not path.is_file():
+        raise _missing(run_dir, names.SCENE)
+    return load_scene(path)
+
+
+def write_scene(run_dir: Path, scene: Scene) -> None:
+    write_text(Path(run_dir) / names.SCENE, dumps_json(scene.model_dump(mode="json")))
+
+
+# Tables: waypoints, trajectory, flight, poses, frame lists ----------------------------------------------------------
+
+def write_waypoints(run_dir: Path, waypoints: list[Waypoint], times: np.ndarray) -> None:
+    """One row per waypoint: what it is for (kind, plant, side), when it is passed, and q* (yaw unwrapped)."""
+    dofs = np.array([w.dofs for w in waypoints])
+    dofs[:, 3] = np.unwrap(dofs[:, 3])
+    lines = [",".join(WAYPOINT_HEADER)]
+    for index, (waypoint, time, q) in enumerate(zip(waypoints, times, dofs)):
+        numbers = ",".join(f"{value:.6f}" for value in (time, *q))
+        lines.append(f"{index},{waypoint.kind},{waypoint.plant},{waypoint.side},{numbers}")
+    write_text(Path(run_dir) / names.WAYPOINTS, "\n".join(lines) + "\n")
+
+
+def read_waypoints(run_dir: Path) -> list[Waypoint]:
+    """The waypoints of `waypoints.csv`, each with the time it is passed as `time`."""
+    path = Path(run_dir) / names.WAYPOINTS
+    try:
+        rows = path.read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        raise _missing(run_dir, names.WAYPOINTS) from None
+    except (OSError, UnicodeDecodeError):
+        raise UserError(f"{path}: not a readable text file") from None
+    if not rows or rows[0] != ",".join(WAYPOINT_HEADER):
+        raise UserError(f"{path}: header is not {','.join(WAYPOINT_HEADER)}")
+    waypoints = []
+    for number, row in enumerate(rows[1:], start=2):
+        fields = row.split(",")
+        try:
+            if len(fields) != len(WAYPOINT_HEADER) or fields[1] not in WAYPOINT_KINDS:
+                raise ValueError
+            values = np.array([float(v) for v in fields[4:]])
+            if not np.all(np.isfinite(values)):
+                raise ValueError
+            waypoints.append(Waypoint(fields[1], values[1:], int(fields[2]), fields[3], float(values[0])))
+        except ValueError:
+            raise UserError(f"{path}: line {number} is not a waypoint row") from None
+    return waypoints
+
+
+def write_trajectory(run_dir: Path, table: np.ndarray) -> None:
+    write_csv(Path(run_dir) / names.TRAJECTORY, TRAJECTORY_HEADER, table)
+
+
+def read_trajectory(run_dir: Path) -> np.ndarray:
+    """Rows of t, q*, q̇*, q̈* (7 DoF each) at the planner's sample rate."""
+    require(run_dir, (names.TRAJECTORY,))
+    return read_csv(Path(run_dir) / names.TRAJECTORY, TRAJECTORY_HEADER)
+
+
+def write_flight(run_dir: Path, table: np.ndarray) -> None:
+    write_csv(Path(run_dir) / names.FLIGHT, FLIGHT_HEADER, table, fmt=FLIGHT_FORMAT)
+
+
+def read_flight(run_dir: Path) -> dict[str, np.ndarray]:
+    """flight.csv's columns by name."""
+    require(run_dir, (names.FLIGHT,))
+    table = read_csv(Path(run_dir) / names.FLIGHT, FLIGHT_HEADER)
+    return {name: table[:, column] for column, name in enumerate(FLIGHT_HEADER)}
+
+
+def write_poses(run_dir: Path, times: np.ndarray, positions: np.ndarray, rotations: np.ndarray) -> None:
+    write_tum(Path(run_dir) / names.POSES, times, positions, rotations, POSES_COMMENT)
+
+
+def read_poses(run_dir: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The camera's timestamps (N,) and optical-frame poses in the world, T_world_optical (N, 4, 4)."""
+    require(run_dir, (names.POSES,))
+    times, positions, rotations = read_tum(Path(run_dir) / names.POSES)
+    return times, np.array([homogeneous(r, p) for r, p in zip(rotations, positions)])
+
+
+def write_frames_index(run_dir: Path, stream: str, times: np.ndarray) -> None:
+    """rgb.txt, depth.txt, depth_sensor.txt: `timestamp path` per frame, as TUM RGB-D lists them."""
+    lines = [f"# {stream} images of renderloop, TUM RGB-D layout", "# timestamp filename"]
+    lines += [f"{t:.6f} {names.frame_file(stream, i)}" for i, t in enumerate(times)]
+    write_text(Path(run_dir) / names.frames_index(stream), "\n".join(lines) + "\n")
+
+
+def read_frames_index(run_dir: Path, stream: str) -> list[tuple[float, str]]:
+    path = Path(run_dir) / names.frames_index(stream)
+    if not path.is_file():
+        raise _missing(run_dir, names.frames_index(stream)) if stream != names.DEPTH_SENSOR else UserError(f"{path}: no such file")
+    entries = []
+    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        if line.startswith("#") or not line.strip():
+            continue
+        parts = line.split()
+        try:
+            if len(parts) != 2:
+                raise ValueError
+            entries.append((float(parts[0]), parts[1]))
+        except ValueError:
+            raise UserError(f"{path}: line {number} is not `timestamp filename`") from None
+    return entries
+
+
+# Camera intrinsics ------------------------------------------------------------------------------------------------
+
+def write_camera_info(run_dir: Path, intrinsics: Intrinsics) -> None:
+    write_text(Path(run_dir) / names.CAMERA_INFO, camera_info_yaml(intrinsics))
+
+
+def read_camera_info(run_dir: Path) -> Intrinsics:
+    path = Path(run_dir) / names.CAMERA_INFO
+    if not path.is_file():
+        raise _missing(run_dir, names.CAMERA_INFO)
+    try:
+        return parse_camera_info(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise UserError(f"{path}: not a ROS camera_info YAML") from None
+    except ValueError as error:
+        raise UserError(f"{path}: {error}") from None
+
+
+def read_json(path: Path) -> object:
+    """A JSON file of ours whose model is the caller's business (a dataset's records)."""
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        raise UserError(f"{path}: not a readable JSON file") from None

@@ -1,0 +1,160 @@
+"""The JSON files of a run directory as pydantic models: what each holds, in SI units.
+
+Files are read strictly (unknown keys, wrong types, NaN or infinite numbers are
+errors), so a damaged or hand-edited file fails in one line naming the file and the
+field (`renderloop.rundir.files.read_model`) instead of deep inside a stage. The scene
+(`scene.json`) has its own model in `renderloop.scene.model`.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, RootModel, model_validator
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Unit = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
+Count = Annotated[int, Field(ge=0)]
+Point = tuple[Finite, Finite, Finite]
+
+
+class FileModel(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+
+class Detection(FileModel):
+    """One box: pixels with exclusive far edges; `position` is the fruit point in the world frame, m (null: no depth)."""
+
+    bbox: tuple[Finite, Finite, Finite, Finite]
+    score: Unit
+    label: Literal["ripe", "unripe"]
+    position: Point | None
+
+    @model_validator(mode="after")
+    def _ordered_box(self) -> Detection:
+        x0, y0, x1, y1 = self.bbox
+        if x1 < x0 or y1 < y0:
+            raise ValueError(f"bbox {list(self.bbox)} is not [x0, y0, x1, y1] with x0 <= x1 and y0 <= y1")
+        return self
+
+
+class DetectionFrame(FileModel):
+    index: Count  # the frame's line in groundtruth.txt
+    timestamp: Finite  # simulation seconds
+    image: str  # the RGB image, relative to the run directory
+    detections: list[Detection]
+
+
+class Detections(FileModel):
+    """`detections.json`: the detector's settings and every frame's boxes (`renderloop detect`)."""
+
+    model: str
+    score_threshold: Unit
+    windows: list[str] = []  # window layouts (columns x rows) searched besides the whole frame
+    grid: int | None = Field(None, ge=1)  # what files written before the layouts said instead: windows per side
+    mirror: bool = False  # the mirrored frame searched too
+    depth: str | None = None  # which depth stream gave the positions
+    frames: list[DetectionFrame]
+
+
+class DetectionScores(FileModel):
+    """`detection_scores.json`: the detections scored against the masks (the simulator's truth)."""
+
+    ripe_findable: Count
+    ripe_found: Count
+    ripe_recall: Unit | None
+    detections_scored: Count
+    false_detections: Count
+    false_rate: Unit | None
+    label_accuracy: Unit | None
+    position_error_median_m: Finite | None
+    position_error_p90_m: Finite | None
+
+
+class PlantCount(FileModel):
+    id: int
+    row: int
+    estimate: Count  # ripe fruit counted
+    truth: Count  # ripe fruit in the scene
+    unripe_estimate: Count
+    unripe_truth: Count
+    clusters: list[Point]  # counted ripe fruit, world frame, m
+    unripe_clusters: list[Point]
+
+
+class RowCount(FileModel):
+    id: int
+    estimate: Count
+    truth: Count
+    unripe_estimate: Count
+    unripe_truth: Count
+    detections: Count  # ripe points of the row after false-positive removal (the paper's n_init)
+    unripe_detections: Count
+    removed: Count  # false positives dropped
+    unripe_removed: Count
+
+
+class TotalCount(FileModel):
+    estimate: Count
+    truth: Count
+    error_pct: Finite | None  # 100 (estimate - truth) / truth; null when there is no ripe fruit
+    unripe_estimate: Count
+    unripe_truth: Count
+    exact_plants: Unit | None  # share of plants counted exactly
+
+
+class DetectionTally(FileModel):
+    frames: Count
+    ripe: Count  # detections with a position
+    unripe: Count
+    no_position: Count
+    removed: Count
+    unripe_removed: Count
+
+
+class Counts(FileModel):
+    """`counts.json`: per plant, per row and in total, estimate beside truth (`renderloop count`).
+    `estimate` is always the ripe count: ripe fruit are what the harvest plan is for."""
+
+    plants: list[PlantCount]
+    rows: list[RowCount]
+    total: TotalCount
+    detections: DetectionTally
+    settings: dict[str, Any]  # the counting config used (with the effective use_layout) and the seed
+
+
+class HarvestStop(FileModel):
+    id: int
+    row: int
+    expected_ripe: Count
+    position: Point
+    leg_distance: Annotated[float, Field(ge=0, allow_inf_nan=False)]  # m, from the previous stop or the workstation
+
+
+class Harvest(FileModel):
+    """`harvest.json`: the plants worth bringing to the workstation, in visiting order (`renderloop count`)."""
+
+    workstation: Point
+    distance: str  # how distances are measured
+    min_ripe: Count
+    stops: list[HarvestStop]
+    return_distance: Annotated[float, Field(ge=0, allow_inf_nan=False)]
+    total_distance: Annotated[float, Field(ge=0, allow_inf_nan=False)]
+    total_expected_ripe: Count
+
+
+class Timings(RootModel[dict[str, Annotated[float, Field(ge=0, allow_inf_nan=False)]]]):
+    """`timings.json`: seconds of the last run of each stage (`renderloop run`)."""
+
+
+class RenderRecord(FileModel):
+    """`render.json`: what the frames of the run directory were rendered from; another record means other frames."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)  # not strict: the camera and renderer are plain JSON
+    backend: str
+    frames: Count
+    poses_sha256: str
+    scene_sha256: str
+    seed: int
+    camera: dict[str, Any]
+    renderer: dict[str, Any]

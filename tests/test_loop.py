@@ -1,0 +1,141 @@
+"""The loop online: a simulation stepped by hand flies as `fly` does, replans without a jump, and its camera
+renders the frames a batch render gives, so an online run writes the batch run's files and counts."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from renderloop.config import Config
+from renderloop.counting.online import OnlineCounter
+from renderloop.errors import UserError
+from renderloop.loop.reference import quintic_bridge
+from renderloop.loop.simulation import Simulation
+from renderloop.pipeline import run_pipeline
+from renderloop.rundir import files, names
+from renderloop.rundir.ownership import BOOKKEEPING
+from renderloop.sim.flight import Reference, fly
+
+from conftest import fly_demo_raster
+
+
+@pytest.fixture(scope="module")
+def flown(tmp_path_factory) -> Path:
+    return fly_demo_raster(tmp_path_factory.mktemp("loop") / "run")
+
+
+def test_a_simulation_stepped_by_hand_logs_the_flight_fly_logs(flown: Path):
+    config = files.read_config(flown)
+    table = files.read_trajectory(flown)
+    reference = Reference(table[:, 0], table[:, 1:8], table[:, 8:15], table[:, 15:22])
+    batch = fly(mujoco.MjModel.from_xml_path(str(flown / names.WORLD)), config, reference)
+    with Simulation(config, flown) as sim:
+        sim.follow(sim.scan_trajectory())
+        sim.run_until(3.0)  # in pieces of every size: the flight may not depend on how it is stepped
+        for _ in range(17):
+            sim.step()
+        sim.run()
+        online = sim.log()
+    for field in ("t", "position", "quaternion", "joints", "rotor_speeds", "reference", "camera_position", "contacts", "saturated"):
+        assert np.array_equal(getattr(online, field), getattr(batch, field)), field
+
+
+def test_the_quintic_bridge_meets_both_states_exactly():
+    rng = np.random.default_rng(3)
+    start, end = tuple(rng.normal(size=(3, 7))), tuple(rng.normal(size=(3, 7)))
+    q, qd, qdd = quintic_bridge(start, end, 0.2, np.array([0.0, 0.2]))
+    for got, want in zip((q, qd, qdd), zip(start, end)):
+        assert np.allclose(got, np.array(want), atol=1e-9)
+
+
+def test_a_replan_mid_flight_joins_without_a_jump_and_is_flown_safely(flown: Path):
+    config = files.read_config(flown)
+    with Simulation(config, flown) as sim:
+        sim.follow(sim.scan_trajectory())
+        sim.run_until(4.0)
+        old = sim.plan.q.copy(), sim.plan.qd.copy(), sim.plan.qdd.copy()
+        join = sim.tick
+        here, velocity, _ = sim.reference
+        behind = -0.5 * velocity[:3] / np.linalg.norm(velocity[:3])  # back where it came from: it must turn round
+        target = here + np.concatenate([behind + [0.0, 0.0, 0.1], [0.4, 0.0, 0.0, 0.1]])
+        end = sim.replan(np.array([target]))
+        plan = sim.plan
+        for before, after in zip(old, (plan.q, plan.qd, plan.qdd)):
+            assert np.array_equal(before[: join + 1], after[: join + 1])  # the past, and the join itself, unchanged
+        dt = 1 / sim.rate_hz
+        window = slice(join, join + int(0.6 * sim.rate_hz))
+        # the derivatives are the derivatives: q̇ integrates to q and q̈ to q̇ across the blend (trapezoid rule)
+        assert np.allclose(np.diff(plan.q[window], axis=0), dt * (plan.qd[window][1:] + plan.qd[window][:-1]) / 2, atol=2e-4)
+        assert np.allclose(np.diff(plan.qd[window], axis=0), dt * (plan.qdd[window][1:] + plan.qdd[window][:-1]) / 2, atol=3e-3)
+        assert np.allclose(plan.q[-1], target, atol=1e-6) and end == pytest.approx(plan.t[-1] - sim.hold, abs=dt)
+        limits = np.asarray(config.planner.acceleration_limits)
+        assert np.all(np.abs(plan.qdd[join:]) <= 2 * limits)  # the bridge eases between two accelerations within the limits
+        sim.run()
+        log = sim.log()
+    assert log.contacts.sum() == 0
+    assert np.linalg.norm(log.position[-1] - target[:3]) < 0.05
+
+
+def test_a_camera_faster_than_the_control_loop_is_refused(flown: Path):
+    config = files.read_config(flown)
+    with Simulation(config, flown) as sim, pytest.raises(UserError, match="cannot serve it"):
+        sim.add_camera(rate_hz=1000.0)
+
+
+def _contract(run_dir: Path) -> dict[str, bytes]:
+    """A run's files, less what says how it was run (its config, its seconds, its own bookkeeping)."""
+    skip = {names.CONFIG, names.TIMINGS, *BOOKKEEPING}
+    return {p.relative_to(run_dir).as_posix(): p.read_bytes() for p in sorted(run_dir.rglob("*"))
+            if p.is_file() and p.name not in skip}
+
+
+def test_an_online_run_writes_the_batch_runs_files_and_counts(complete_run: Path, tmp_path: Path):
+    batch = files.read_config(complete_run)
+    online = batch.model_copy(update={"mission": batch.mission.model_copy(update={"online": True})})
+    run_dir = tmp_path / "online"
+    run_pipeline(run_dir, online)
+    assert _contract(run_dir) == _contract(complete_run)
+    assert files.read_counts(run_dir) == files.read_counts(complete_run)
+    assert (run_dir / "rgb" / "000000.png").is_file()
+
+
+def test_the_online_counter_counts_what_the_batch_count_counts(complete_run: Path):
+    config = files.read_config(complete_run)
+    detections = files.read_detections(complete_run, len(files.read_poses(complete_run)[0]))
+    counter = OnlineCounter(files.read_scene(complete_run), config.counting, config.seed)
+    for frame in reversed(detections.frames):  # arrival order does not matter: frames are counted in index order
+        counter.add(frame)
+    counted = counter.counts()
+    recorded = files.read_counts(complete_run)
+    assert counted.per_plant() == {p.id: p.estimate for p in recorded.plants if p.estimate}
+    assert counted.total("unripe") == recorded.total.unripe_estimate
+    assert all(fruit.support >= config.counting.min_views for fruit in counted.fruit)
+
+
+@pytest.mark.parametrize("workers", [2])
+def test_one_and_two_cycles_workers_render_the_same_online_frames(workers: int, tmp_path: Path):
+    data = Config.model_validate({}).model_dump(mode="json")
+    from renderloop.config import load_config
+
+    data = load_config("demo").model_dump(mode="json")
+    data["camera"].update(width=64, height=48, rate_hz=0.1)
+    data["renderer"]["backend"] = "cycles"
+    config = Config.model_validate(data)
+    one = tmp_path / "one"
+    with Simulation(config, one) as sim:
+        sim.follow(sim.scan_trajectory())
+        camera = sim.add_camera()
+        sim.run()
+        single = [frame.files for frame in camera.frames_until(sim.end)]
+    two = tmp_path / "two"
+    shutil.copytree(one, two)
+    with Simulation(config, two) as sim:
+        sim.follow(sim.scan_trajectory())
+        camera = sim.add_camera(workers=workers)
+        sim.run()
+        several = [frame.files for frame in camera.frames_until(sim.end)]
+    assert len(single) >= 3 and single == several
