@@ -80,10 +80,16 @@ def test_a_replan_mid_flight_joins_without_a_jump_and_is_flown_safely(flown: Pat
     assert np.linalg.norm(log.position[-1] - target[:3]) < 0.05
 
 
-def test_a_camera_faster_than_the_control_loop_is_refused(flown: Path):
+def test_bad_sensor_arguments_are_value_errors_with_the_clis_sentence(flown: Path):
     config = files.read_config(flown)
-    with Simulation(config, flown) as sim, pytest.raises(UserError, match="cannot serve it"):
-        sim.add_camera(rate_hz=1000.0)
+    with Simulation(config, flown) as sim:
+        with pytest.raises(ValueError, match="the control loop at 100.0 Hz cannot serve it"):
+            sim.add_camera(rate_hz=1000.0)
+        with pytest.raises(ValueError, match="unknown backend 'opengl'"):
+            sim.add_camera(backend="opengl")
+        with pytest.raises(ValueError, match="--address 127.0.0.1:1: no Ray cluster answers there"):
+            sim.add_camera(executor="ray", address="127.0.0.1:1")
+    assert issubclass(UserError, ValueError)
 
 
 def _contract(run_dir: Path) -> dict[str, bytes]:

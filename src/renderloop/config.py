@@ -16,7 +16,7 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from renderloop.errors import UserError, field_path
+from renderloop.errors import UserError, problem
 from renderloop.perception.tiling import LAYOUT_PATTERN, Layout, layout
 
 
@@ -486,12 +486,7 @@ def validate(data: dict[str, Any], source: str) -> Config:
     try:
         return Config.model_validate(data)
     except ValidationError as exc:
-        error = exc.errors()[0]
-        field = field_path(error["loc"])  # empty for a check across sections, whose message names its fields
-        message = error["msg"].removeprefix("Value error, ")
-        if error["type"] == "extra_forbidden":
-            message = "unknown field"
-        raise UserError(f"{source}: {field + ': ' if field else ''}{message}") from None
+        raise UserError(f"{source}: {problem(exc)}") from None
 
 
 def load_config(preset: str = "demo", config_file: Path | None = None, seed: int | None = None,

@@ -29,6 +29,8 @@ def read_csv(path: Path, header: list[str]) -> np.ndarray:
             table = np.loadtxt(handle, delimiter=",", ndmin=2)
     except FileNotFoundError:
         raise UserError(f"{path}: no such file") from None
+    except UserError:
+        raise
     except (ValueError, UnicodeDecodeError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
         raise UserError(f"{path}: not a numeric table ({reason})") from None

@@ -34,7 +34,7 @@ import numpy as np
 from PIL import Image
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveInt, ValidationError
 
-from renderloop.errors import UserError, field_path
+from renderloop.errors import UserError, problem
 from renderloop.io.atomic import write_json
 from renderloop.io.images import check_image, read_image
 from renderloop.perception.boxes import box_iou
@@ -127,9 +127,7 @@ def _parse(coco: Path) -> CocoLabels:
     try:
         return CocoLabels.model_validate(data)
     except ValidationError as error:
-        first = error.errors()[0]
-        place = f"{field_path(first['loc'])}: " if first["loc"] else ""
-        raise UserError(f"{where}: not a COCO file ({place}{first['msg']})") from None
+        raise UserError(f"{where}: not a COCO file ({problem(error)})") from None
 
 
 def _photo_path(folder: Path, image: CocoImage, where: str) -> Path:

@@ -149,6 +149,8 @@ def ray_session(workers: int, address: str | None) -> Iterator[None]:
                 ray.init(address=address, log_to_driver=False)
             else:
                 ray.init(num_cpus=max(workers, 1), include_dashboard=False, log_to_driver=False)
+        except UserError:
+            raise
         except (ConnectionError, RuntimeError, ValueError) as error:
             raise UserError(f"--address {address}: no Ray cluster answers there ({str(error).splitlines()[0]})") from None
     try:

@@ -17,7 +17,7 @@ import numpy as np
 from pydantic import BaseModel, ValidationError
 
 from renderloop.config import Config, load_resolved
-from renderloop.errors import UserError, field_path
+from renderloop.errors import UserError, problem
 from renderloop.io.atomic import dumps_json, write_text
 from renderloop.io.csvtable import read_csv, write_csv
 from renderloop.io.tum import read_tum, write_tum
@@ -70,10 +70,7 @@ def read_model(path: Path, model: type[Model]) -> Model:
     try:
         return model.model_validate_json(data)
     except ValidationError as exc:
-        error = exc.errors()[0]
-        field = field_path(error["loc"])
-        message = "unknown field" if error["type"] == "extra_forbidden" else error["msg"].removeprefix("Value error, ")
-        raise UserError(f"{path}: {field + ': ' if field else ''}{message}") from None
+        raise UserError(f"{path}: {problem(exc)}") from None
 
 
 def write_model(path: Path, document: BaseModel) -> None:

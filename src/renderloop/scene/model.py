@@ -15,7 +15,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from renderloop.errors import UserError, field_path
+from renderloop.errors import UserError, problem
 
 FORMAT_VERSION = 1
 MAX_PEPPER_ID = 32767
@@ -140,9 +140,7 @@ def load_scene(path: Path) -> Scene:
     try:
         scene = Scene.model_validate(data)
     except ValidationError as exc:
-        error = exc.errors()[0]
-        field = field_path(error["loc"]) or "scene"
-        raise UserError(f"{path}: {field}: {error['msg']}") from None
+        raise UserError(f"{path}: {problem(exc)}") from None
     if scene.format_version != FORMAT_VERSION:
         raise UserError(f"{path}: format_version {scene.format_version} is not {FORMAT_VERSION}")
     return scene
