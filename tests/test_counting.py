@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -41,6 +42,7 @@ from renderloop.counting.stage import run_count
 from renderloop.errors import UserError
 from renderloop.io.atomic import dumps_json
 from renderloop.io.tum import write_tum
+from renderloop.rundir import files
 from renderloop.rundir.files import read_counts, write_config
 from renderloop.scene.model import Scene
 
@@ -377,3 +379,27 @@ def test_cli_counts_a_run_directory_then_skips_and_redoes(monkeypatch, capsys, t
     (out / "detections.json").write_text('{"model": 1}')  # newer input: redone, and refused
     code, _, stderr = cli(monkeypatch, capsys, "count", str(out))
     assert code == 2 and stderr.count("\n") == 1 and "detections.json" in stderr
+
+
+def test_counts_tell_fruit_the_scan_never_showed_from_the_detectors_misses(complete_run: Path, tmp_path: Path):
+    from PIL import Image
+
+    from renderloop.render.frames import read_png
+
+    run = tmp_path / "run"
+    shutil.copytree(complete_run, run)
+    before = read_counts(run)
+    assert before.total.unseen is not None and before.total.seen_error_pct is not None
+    assert before.total.unseen == sum(p.unseen for p in before.plants)
+    masks = sorted((run / "masks").iterdir())
+    shown = {int(i) for path in masks for i in np.unique(read_png(path, np.uint16)) if i}
+    scene = files.read_scene(run)
+    hidden = next(p for p in scene.peppers if p.ripe and p.id in shown)
+    for path in masks:  # as if every view had the fruit behind a leaf
+        mask = read_png(path, np.uint16)
+        Image.fromarray(np.where(mask == hidden.id, 0, mask).astype(np.uint16)).save(path)
+    run_count(run, files.read_config(run), force=True)
+    after = read_counts(run)
+    plant = {p.id: p for p in after.plants}[hidden.plant]
+    assert plant.unseen == {p.id: p for p in before.plants}[hidden.plant].unseen + 1
+    assert after.total.unseen == before.total.unseen + 1

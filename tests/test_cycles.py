@@ -173,3 +173,62 @@ def test_header_times_parse():
     assert _seconds("01:02.50") == pytest.approx(62.5)
     assert _seconds("1:00:00.00") == pytest.approx(3600.0)
     assert math.isnan(_seconds(None))
+
+
+def test_device_auto_falls_back_to_the_cpu_and_gpu_is_refused_in_one_line():
+    """On a machine without a CUDA or OptiX GPU (the test machines): `auto` renders on the CPU, the same frame as
+    `cpu`, and says so; `gpu` is one UserError line."""
+    from renderloop.errors import UserError
+
+    def with_device(device: str):
+        data = small_config(64, 48).model_dump(mode="json")
+        data["renderer"]["device"] = device
+        return type(small_config()).model_validate(data)
+
+    pose = homogeneous(camera_rotation(0.0, 0.0), (0.0, 0.0, 1.0))
+    cube = [("cube", meshes.box((1.5, 0.0, 1.0), (0.3, 0.3, 0.3)), (0.8, 0.1, 0.1), 7)]
+    intrinsics = Intrinsics.from_config(small_config(64, 48).camera)
+    frames = {}
+    for device in ("cpu", "auto"):
+        with CyclesRenderer.from_objects(cube, with_device(device), intrinsics) as renderer:
+            if device == "auto" and renderer.device != "cpu":
+                pytest.skip(f"this machine has a GPU ({renderer.device}: {renderer.device_names})")
+            assert renderer.device == "cpu" and renderer.device_names == []
+            frames[device] = renderer.render(pose)
+    assert np.array_equal(frames["auto"].rgb, frames["cpu"].rgb) and 7 in frames["auto"].mask
+    with pytest.raises(UserError, match=r"^renderer\.device: gpu, but Cycles finds no CUDA or OptiX GPU") as refused:
+        CyclesRenderer.from_objects(cube, with_device("gpu"), intrinsics)
+    assert "\n" not in str(refused.value)
+
+
+def test_gpu_without_a_gpu_is_the_same_one_line_from_worker_processes():
+    from renderloop.errors import UserError
+    from renderloop.render.cycles import _gpu_devices
+    from renderloop.render.executor import render_local
+
+    if _gpu_devices() is not None:
+        pytest.skip("this machine has a GPU")
+    data = small_config(32, 24).model_dump(mode="json")
+    data["renderer"]["device"] = "gpu"
+    config = type(small_config()).model_validate(data)
+    scene = generate_scene(config)
+    poses = np.stack([homogeneous(camera_rotation(0.0, 0.0), (0.0, 0.0, 1.0))] * 2)
+    with pytest.raises(UserError, match=r"^renderer\.device: gpu, but Cycles finds no CUDA or OptiX GPU"):
+        list(render_local(config, scene, poses, "cycles", [0, 1], workers=2))
+
+
+def test_cycles_materials_are_built_from_the_table(monkeypatch):
+    """Changing a material is one step: the table's numbers reach the node tree."""
+    import dataclasses
+
+    from renderloop.render import materials as looks
+    from renderloop.scene import materials as table
+
+    monkeypatch.setitem(table.MATERIALS, "wall", dataclasses.replace(table.MATERIALS["wall"], base_rgb=(0.2, 0.4, 0.6), roughness=0.3))
+    built = looks.greenhouse_materials()
+    assert set(built) == {name for name, look in table.MATERIALS.items() if look.recipe}
+    principled = next(n for n in built["wall"].node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    assert tuple(principled.inputs["Base Color"].default_value)[:3] == pytest.approx(looks.srgb_to_linear((0.2, 0.4, 0.6)))
+    assert principled.inputs["Roughness"].default_value == pytest.approx(0.3)
+    pepper = next(n for n in built["pepper_red"].node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    assert pepper.inputs["Coat Weight"].default_value == pytest.approx(table.MATERIALS["pepper_red"].coat)

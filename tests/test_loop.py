@@ -9,6 +9,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from conftest import fly_demo_raster
 
 from renderloop.config import Config
 from renderloop.counting.online import OnlineCounter
@@ -19,8 +20,6 @@ from renderloop.pipeline import run_pipeline
 from renderloop.rundir import files, names
 from renderloop.rundir.ownership import BOOKKEEPING
 from renderloop.sim.flight import Reference, fly
-
-from conftest import fly_demo_raster
 
 
 @pytest.fixture(scope="module")
@@ -145,3 +144,16 @@ def test_one_and_two_cycles_workers_render_the_same_online_frames(workers: int, 
         sim.run()
         several = [frame.files for frame in camera.frames_until(sim.end)]
     assert len(single) >= 3 and single == several
+
+
+def test_a_replan_after_the_hover_starts_from_where_the_robot_rests(flown: Path):
+    config = files.read_config(flown)
+    with Simulation(config, flown, hold=0.2) as sim:
+        sim.follow(sim.scan_trajectory())
+        sim.run()
+        for _ in range(30):  # past the end of the plan and its hover
+            sim.step()
+        rest = sim.reference[0].copy()
+        sim.replan(np.array([rest + [0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 0.0]]))
+        assert len(sim.plan.t) > sim.tick and np.array_equal(sim.plan.q[sim.tick], rest)
+        assert np.allclose(np.diff(sim.plan.t), 1 / sim.rate_hz)

@@ -191,3 +191,30 @@ def test_a_render_that_cannot_fit_on_the_disk_is_refused_before_its_first_frame(
     with pytest.raises(UserError, match=r"frames of 320x240 need up to 0\.\d GB but the disk has 0\.0 GB free"):
         run_render(flown, read_config(flown))
     assert not (flown / "rgb").exists() and not (flown / "rgb.txt").exists()
+
+
+def test_raster_colours_come_from_the_material_table(raster):
+    import mujoco
+
+    from renderloop.scene.materials import display_rgba
+
+    config, scene, intrinsics, renderer = raster
+    model = renderer.model
+    for geom, material in (("floor", "floor"), ("wall_east", "wall"), ("table_0", "table"), ("workstation_arm", "workstation")):
+        assert tuple(model.geom_rgba[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)]) == pytest.approx(display_rgba(material))
+    pot = model.geom_rgba[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "pot_0")]
+    assert tuple(pot) == pytest.approx(display_rgba("pot"))
+    pepper = scene.peppers[0]
+    assert tuple(model.geom_rgba[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"pepper_{pepper.id}")]) == pytest.approx((*pepper.rgb, 1))
+
+
+def test_the_render_device_is_not_part_of_the_record(flown: Path):
+    """Like the thread count, the device decides how fast frames come, not what they hold."""
+    from renderloop.rundir.files import check_config
+
+    config = read_config(flown)
+    assert run_render(flown, config)
+    gpu = config.model_copy(update={"renderer": config.renderer.model_copy(update={"device": "gpu"})})
+    check_config(flown, gpu)  # the same run
+    assert not run_render(flown, gpu)  # the same frames: nothing to redo
+    assert "device" not in json.loads((flown / "render.json").read_text())["renderer"]

@@ -110,3 +110,28 @@ def test_overlapping_tables_are_refused():
     data["greenhouse"]["tables"] = [(1.0, 2.5), (1.2, 2.5)]
     with pytest.raises(UserError, match="tables 0 and 1 overlap"):
         generate_scene(type(load_config("demo")).model_validate(data))
+
+
+def test_one_object_list_and_one_material_table_for_every_view(demo):
+    """Both renderers draw `greenhouse_objects`, the physics world holds the same static shapes, and every
+    colour comes from the one material table; the module needs neither Blender nor MuJoCo."""
+    import subprocess
+    import sys
+    import xml.etree.ElementTree as ET
+
+    from renderloop.scene.materials import MATERIALS, display_rgba
+    from renderloop.scene.objects import collision_objects, greenhouse_objects, static_objects
+    from renderloop.scene.world import world_xml
+
+    config, scene = demo
+    objects = greenhouse_objects(scene)
+    assert all(MATERIALS[obj.material].recipe is not None for obj in objects)  # Cycles can draw each
+    assert {obj.pass_index: obj.name for obj in objects if obj.pass_index} == {p.id: f"pepper_{p.id}" for p in scene.peppers}
+    assert [obj.shapes for obj in collision_objects(scene)[:4]] == [obj.shapes for obj in static_objects(scene)]
+    root = ET.fromstring(world_xml(scene, config))
+    rgba = {m.get("name"): tuple(map(float, m.get("rgba").split())) for m in root.iter("material")}
+    assert rgba and all(rgba[name] == display_rgba(name) for name in rgba)
+    assert display_rgba("floor") == (*MATERIALS["floor"].base_rgb, 1.0)  # derived from the Cycles colour
+    code = ("import sys, renderloop.scene.objects, renderloop.scene.materials; "
+            "sys.exit(any(m in sys.modules for m in ('bpy', 'mujoco')))")
+    assert subprocess.run([sys.executable, "-c", code]).returncode == 0

@@ -7,6 +7,21 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 __version__ = "0.1.0"
 
+__all__ = ["Simulation", "load_config"]
+
+
+def __getattr__(name: str):
+    """The public API, imported on first use so that `import renderloop` stays light (no MuJoCo, no Blender)."""
+    if name == "Simulation":
+        from renderloop.loop.simulation import Simulation
+
+        return Simulation
+    if name == "load_config":
+        from renderloop.config import load_config
+
+        return load_config
+    raise AttributeError(f"module 'renderloop' has no attribute {name!r}")
+
 
 def _register_environments() -> None:
     """`gymnasium.make("renderloop/PepperScan-v0")` once renderloop is imported; the environment's module (MuJoCo, the

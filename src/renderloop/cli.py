@@ -147,13 +147,15 @@ def dataset(
     views_per_scene: Annotated[int, typer.Option(min=1, max=1000, help="Views rendered from each random scene.")] = DatasetSpec.views_per_scene,
     width: Annotated[int, typer.Option(min=16, max=4096, help="Image width, px (height: 3/4 of it).")] = DatasetSpec.width,
     distance: Annotated[tuple[float, float], typer.Option(help="Near and far camera distance from the plant axis, m.")] = DatasetSpec.distance,
+    sensor: Annotated[bool, typer.Option("--sensor/--no-sensor", help="Each view through the colour-sensor model "
+                                         "(exposure, white balance, noise, vignetting, defocus, sharpening, JPEG), drawn at random.")] = DatasetSpec.sensor,
     workers: Workers = 1,
     executor: Executor = "local",
     address: Address = None,
     force: Force = False,
 ) -> None:
     """Render a COCO detection dataset (ripe, unripe) of random greenhouse views with Cycles, boxes from the masks."""
-    spec = DatasetSpec(seed=seed, width=width, height=width * 3 // 4, views_per_scene=views_per_scene, distance=distance)
+    spec = DatasetSpec(seed=seed, width=width, height=width * 3 // 4, views_per_scene=views_per_scene, distance=distance, sensor=sensor)
     with _progress_bar("dataset") as progress:
         made = build_dataset(out, images, spec, workers, executor, address, force, progress)
     typer.echo(f"dataset: rendered {made} images, {images} in {out}")
@@ -267,8 +269,9 @@ def count(
     made = run_count(run_dir, without_layout(config) if no_layout else config, force)
     total = read_counts(run_dir).total
     error = "n/a" if total.error_pct is None else f"{total.error_pct:+.1f} %"
+    unseen = "" if total.unseen is None else f"; {total.unseen} never in view, {total.too_small} only too small"
     typer.echo(f"count: {'wrote' if made else 'already complete in'} {run_dir} "
-               f"(ripe: {total.estimate} counted, {total.truth} true, {error})")
+               f"(ripe: {total.estimate} counted, {total.truth} true, {error}{unseen})")
 
 
 @app.command()

@@ -1,6 +1,6 @@
 """Typed configuration of a run: one pydantic model per subsystem, presets, YAML in and out.
 
-The defaults are the numbers of the reference work (DESIGN §4), so the `paper`
+The defaults are the numbers of the reference work (docs/design.md), so the `paper`
 preset is almost empty; `demo` shrinks the greenhouse to one table. A user YAML
 file is deep-merged over the preset, and every unknown key is an error, because a
 misspelt field that silently keeps its default is the worst kind of config bug.
@@ -177,7 +177,7 @@ class PlantConfig(Strict):
 
 
 class RotorConfig(Strict):
-    """Rotor thrust F = kf w^2, drag moment M = km F (DESIGN §4)."""
+    """Rotor thrust F = kf w^2, drag moment M = km F (docs/design.md)."""
 
     kf: Real(1e-9, 1e-2) = Field(8.54858e-6, description="Thrust coefficient kf of F = kf w², N s²/rad².")
     km: Real(0.0, 1.0, low_open=True) = Field(0.016, description="Drag moment over thrust km of M = km F, m.")
@@ -226,6 +226,29 @@ class RobotConfig(Strict):
         return self
 
 
+def Range(low: float, high: float) -> Any:
+    """A [lowest, highest] pair within [low, high]: each frame draws its value from it (equal ends: a fixed value)."""
+    return tuple[Real(low, high), Real(low, high)]
+
+
+class SensorConfig(Strict):
+    """The colour stream of a RealSense D435-class camera (render/sensor.py); each frame draws every value from its
+    range. Off: the ideal stream only. On: `rgb_sensor/` beside `rgb/`, and perception reads the sensor's frames."""
+
+    enabled: bool = Field(False, description="Render the sensor stream rgb_sensor/ beside the ideal rgb/.")
+    exposure_target: Range(0.01, 1.0) = Field(
+        (0.12, 0.22), description="Centre-weighted mean linear luminance auto exposure aims for (0.18: mid grey).")
+    gain: Range(0.01, 100.0) = Field((0.5, 16.0), description="Smallest and largest gain auto exposure may set.")
+    white_balance_error: Range(0.0, 0.5) = Field((0.0, 0.04), description="Sigma of each channel's white-balance gain error.")
+    vignetting: Range(0.0, 1.0) = Field((0.05, 0.3), description="Share of light lost in the image corners.")
+    focus_distance: Range(0.05, 100.0) = Field((0.6, 1.2), description="Distance the fixed-focus lens is sharp at, m.")
+    defocus: Range(0.0, 20.0) = Field((0.0, 1.5), description="Blur radius per 1/m away from focus, px m.")
+    shot_noise: Range(0.0, 0.1) = Field((0.0005, 0.003), description="Shot-noise variance per unit of linear signal and gain.")
+    read_noise: Range(0.0, 0.1) = Field((0.001, 0.004), description="Read-noise sigma in linear units before the gain.")
+    sharpen: Range(0.0, 3.0) = Field((0.2, 0.8), description="ISP unsharp-mask amount (1 = 100 %).")
+    jpeg_quality: Range(10.0, 100.0) = Field((80.0, 100.0), description="JPEG quality of the stream; 100: not compressed.")
+
+
 class CameraConfig(Strict):
     width: Count(16, 8192) = Field(640, description=f"Image width, px; width x height at most {MAX_PIXELS} px.")
     height: Count(16, 8192) = Field(480, description="Image height, px.")
@@ -234,6 +257,7 @@ class CameraConfig(Strict):
         (0.2, 5.0), description="Near and far clipping distance (the depth range), m.")
     rate_hz: Real(0.001, MAX_CAMERA_RATE_HZ) = Field(
         5.0, description="Camera frame rate along the trajectory, Hz; at most controller.rate_hz.")
+    sensor: SensorConfig = Field(SensorConfig(), description="The real camera's colour stream.")
 
     @model_validator(mode="after")
     def _clip(self) -> CameraConfig:
@@ -345,6 +369,9 @@ class RendererConfig(Strict):
     bounces: BouncesConfig = Field(BouncesConfig(), description="Cycles' light-path bounce limits.")
     persistent_data: bool = Field(True, description="Keep Blender's scene data between frames.")
     threads: Count(0, 1024) = Field(0, description="Render threads; 0 means all cores.")
+    device: Literal["cpu", "gpu", "auto"] = Field(
+        "cpu", description="Where Cycles path-traces: 'cpu'; 'gpu': an NVIDIA GPU through OptiX or CUDA, refused when none "
+        "answers; 'auto': the GPU when one answers, else the CPU. Speed only: render.json does not record it.")
     depth_noise: DepthNoiseConfig = Field(DepthNoiseConfig(), description="Noise model of the depth image.")
 
 

@@ -1,6 +1,6 @@
 """Which row, and which plant, a 3D detection belongs to.
 
-With the layout known (the greenhouse is structured, DESIGN §4) a point belongs to
+With the layout known (the greenhouse is structured, docs/design.md) a point belongs to
 the plant whose bounding volume, grown by a small margin for depth noise and for
 points on the fruit's skin, holds it; the row is that plant's row, and a point in no
 volume (pot rim, table, floor, a neighbour's leaf) is a false positive. Without the

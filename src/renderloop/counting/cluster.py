@@ -1,6 +1,6 @@
 """Count the fruit of one row: resample its detection points to a fixed set, cluster it with OPTICS.
 
-The reference work (DESIGN §4, paper "Ripe fruit count") turns the multi-view 3D points
+The reference work (docs/design.md, paper "Ripe fruit count") turns the multi-view 3D points
 of one row into a fixed set of `points` (500): a random subsample when there are more,
 gaussian copies of the detections when there are fewer. OPTICS then runs with
 eps = 4 cm (a pepper's size) and MinPts = 2 * ceil(500 / n_init): "a pepper is seen at

@@ -21,6 +21,7 @@ from renderloop.config import Config, CountingConfig
 from renderloop.counting.cluster import CLASSES, RowCount, class_points, count_rows
 from renderloop.counting.harvest import plan_harvest
 from renderloop.counting.plots import draw_row
+from renderloop.counting.visibility import Seen, fruit_visibility
 from renderloop.errors import UserError
 from renderloop.rundir import files, names
 from renderloop.rundir.models import Counts, Detections, Harvest
@@ -46,9 +47,22 @@ def _error_pct(estimate: int, truth: int) -> float | None:
     return None if truth == 0 else round(100.0 * (estimate - truth) / truth, 4)
 
 
-def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detections, settings: dict) -> Counts:
+def _scan_misses(scene: Scene, seen: dict[int, Seen] | None) -> dict[int, dict[str, int | None]]:
+    """Per plant, ripe fruit no frame showed and ripe fruit never seen at a findable size (None without masks)."""
+    misses: dict[int, dict[str, int | None]] = {plant.id: {"unseen": None, "too_small": None} for plant in scene.plants}
+    if seen is None:
+        return misses
+    for plant in scene.plants:
+        ripe = [p for p in scene.peppers_of(plant.id) if p.ripe]
+        misses[plant.id] = {"unseen": sum(p.id not in seen for p in ripe),
+                            "too_small": sum(p.id in seen and not seen[p.id].findable for p in ripe)}
+    return misses
+
+
+def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detections, settings: dict,
+              seen: dict[int, Seen] | None = None) -> Counts:
     """The `counts.json` document from the per-row clusterings of both classes."""
-    truth = _truth(scene)
+    truth, misses = _truth(scene), _scan_misses(scene, seen)
     centers = {plant.id: {label: [] for label in CLASSES} for plant in scene.plants}
     for label, rows in counts.items():
         for row in rows:
@@ -60,6 +74,7 @@ def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detec
         "unripe_estimate": len(centers[plant.id]["unripe"]), "unripe_truth": truth[plant.id]["unripe"],
         "clusters": _rounded(np.array(centers[plant.id]["ripe"]).reshape(-1, 3)),
         "unripe_clusters": _rounded(np.array(centers[plant.id]["unripe"]).reshape(-1, 3)),
+        **misses[plant.id],
     } for plant in scene.plants]
     by_row = {label: {row.row: row for row in rows} for label, rows in counts.items()}
     rows = []
@@ -76,6 +91,10 @@ def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detec
     total = {key: sum(plant[key] for plant in plants) for key in ("estimate", "truth", "unripe_estimate", "unripe_truth")}
     total["error_pct"] = _error_pct(total["estimate"], total["truth"])
     total["exact_plants"] = round(sum(p["estimate"] == p["truth"] for p in plants) / len(plants), DIGITS) if plants else None
+    if seen is not None:
+        total["unseen"] = sum(p["unseen"] for p in plants)
+        total["too_small"] = sum(p["too_small"] for p in plants)
+        total["seen_error_pct"] = _error_pct(total["estimate"], total["truth"] - total["unseen"] - total["too_small"])
     every = [d for frame in detections.frames for d in frame.detections]
     placed = {label: sum(1 for d in every if d.label == label and d.position is not None) for label in CLASSES}
     return Counts.model_validate({
@@ -112,7 +131,7 @@ def _count(run_dir: Path, config: Config, job: Job) -> None:
     detections = files.read_detections(run_dir, len(times))
     points = class_points(detections.frames)
     counts = {label: count_rows(scene, points[label], label, counting, config.seed) for label in CLASSES}
-    document = summarise(scene, counts, detections, settings_of(counting, config.seed))
+    document = summarise(scene, counts, detections, settings_of(counting, config.seed), fruit_visibility(run_dir, len(times)))
 
     truth = _truth(scene)
     for index, row in enumerate(scene.rows):

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from renderloop.config import SensorConfig
 from renderloop.dataset.coco import write_coco
 from renderloop.dataset.labels import pepper_boxes, pepper_vertices
 from renderloop.dataset.preview import draw_preview
@@ -33,7 +34,8 @@ from renderloop.dataset.views import random_view
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_bytes, write_json
 from renderloop.render.camera import Intrinsics
-from renderloop.render.executor import ray_session, spawnable_sys_path
+from renderloop.render.executor import COLOUR_SENSOR_STREAM, ray_session, spawnable_sys_path
+from renderloop.render.sensor import sensor_rgb
 from renderloop.rundir import ownership
 
 VIEW_STREAM = 0x71E3
@@ -81,7 +83,11 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
                 "samples": config.renderer.samples, "pose": np.round(poses[view], 9).tolist(),
                 "peppers": pepper_boxes(frame.mask, peppers, meshes, poses[view], intrinsics, config.camera.clip[0]),
             }
-            out.append((index, jpeg_bytes(frame.rgb), record))
+            rgb = frame.rgb
+            if spec.sensor:
+                sensor = np.random.default_rng(np.random.SeedSequence([spec.seed, COLOUR_SENSOR_STREAM, index]))
+                rgb = sensor_rgb(rgb, frame.depth, SensorConfig(enabled=True), sensor)
+            out.append((index, jpeg_bytes(rgb), record))
     return out
 
 

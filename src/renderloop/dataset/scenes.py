@@ -35,6 +35,7 @@ class DatasetSpec:
     samples: tuple[int, ...] = (2, 4, 8)  # path-tracing noise levels around the run's default, after denoising
     val_every: int = 10  # every tenth scene is held out for validation
     distance: tuple[float, float] = DISTANCE  # camera to plant axis, m: a close set adds the large fruit of a scan
+    sensor: bool = False  # each view through the colour-sensor model, its settings drawn from SensorConfig's ranges
 
     def __post_init__(self) -> None:
         if not 0.0 < self.distance[0] <= self.distance[1]:
@@ -43,7 +44,7 @@ class DatasetSpec:
     @classmethod
     def manifest_defaults(cls) -> dict:
         """Fields that a manifest of an older version may lack, with the value its images were made with."""
-        return {"distance": list(DISTANCE)}
+        return {"distance": list(DISTANCE), "sensor": False}
 
     def manifest(self) -> dict:
         return {"format_version": 1, **{key: list(v) if isinstance(v, tuple) else v for key, v in asdict(self).items()}}

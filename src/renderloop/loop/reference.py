@@ -70,6 +70,7 @@ class ReferencePlan:
 
         The new motion keeps the current speed where the limits allow the turn into the new path; where they do not
         (a waypoint close ahead, or behind), it brakes to a stop first, on a quintic, and leaves from rest."""
+        self._rest_until(tick)
         state = self.at(tick)
         waypoints = np.asarray(waypoints, dtype=float).reshape(-1, 7)
         velocity = planner.limit_margin * np.asarray(planner.velocity_limits)
@@ -98,6 +99,15 @@ class ReferencePlan:
         self.qd = np.vstack([self.qd[:tick], joined[1], tail.qd])
         self.qdd = np.vstack([self.qdd[:tick], joined[2], tail.qdd])
         self.end = t0 + bridge + float(new.t[-1])
+
+    def _rest_until(self, tick: int) -> None:
+        """Samples at rest where the plan ended, up to `tick`: a replan after the hover joins a reference that exists."""
+        missing = tick - len(self.t)
+        if missing > 0:
+            self.t = np.concatenate([self.t, (len(self.t) + np.arange(missing)) / self.rate_hz])
+            self.q = np.vstack([self.q, np.repeat(self.q[-1:], missing, axis=0)])
+            self.qd = np.vstack([self.qd, np.zeros((missing, 7))])
+            self.qdd = np.vstack([self.qdd, np.zeros((missing, 7))])
 
     @staticmethod
     def _path(q0: np.ndarray, start: list[np.ndarray], waypoints: np.ndarray) -> np.ndarray:

@@ -53,12 +53,17 @@ class Frame:
 
     @cached_property
     def rgb(self) -> np.ndarray:
-        return _decode(self.files[names.RGB])
+        """Colour as the camera delivers it: the sensor stream when the camera has one."""
+        return _decode(self.files.get(names.RGB_SENSOR, self.files[names.RGB]))
 
     @cached_property
     def depth(self) -> np.ndarray:
         """Planar depth, m (0 = no return): the sensor stream when the camera has one, as a real camera gives."""
         return decode_depth(_decode(self.files.get(names.DEPTH_SENSOR, self.files[names.DEPTH])))
+
+    @cached_property
+    def ideal_rgb(self) -> np.ndarray:
+        return _decode(self.files[names.RGB])
 
     @cached_property
     def ideal_depth(self) -> np.ndarray:

@@ -40,8 +40,9 @@ class OnlinePerception:
 
     def take(self, frame) -> DetectionFrame:
         detections = find_fruit(self.detector, frame.rgb, frame.depth, frame.pose, self.settings, self.intrinsics)
+        stream = names.RGB_SENSOR if names.RGB_SENSOR in frame.files else names.RGB
         found = DetectionFrame(index=frame.index, timestamp=round(float(frame.timestamp), 6),
-                               image=names.frame_file(names.RGB, frame.index), detections=detections)
+                               image=names.frame_file(stream, frame.index), detections=detections)
         self.frames.append(found)
         self.counter.add(found)
         return found

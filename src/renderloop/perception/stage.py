@@ -26,7 +26,7 @@ from renderloop.perception.pointcloud import organised_cloud, to_world
 from renderloop.perception.scoring import RunScore
 from renderloop.perception.sheet import draw_detection_sheet
 from renderloop.render.camera import Intrinsics
-from renderloop.render.frames import decode_depth, read_png, sensor_depth_dir
+from renderloop.render.frames import decode_depth, read_png, sensor_depth_dir, sensor_rgb_dir
 from renderloop.rundir import files, names, ownership
 from renderloop.rundir.models import Detection, DetectionFrame, Detections, DetectionScores
 from renderloop.rundir.stage import Job, Stage
@@ -56,7 +56,8 @@ def _read_cache(path: Path, key: str) -> list[DetectionFrame]:
 
 
 def read_rgb_frame(run_dir: Path, index: int) -> np.ndarray:
-    path = run_dir / names.frame_file(names.RGB, index)
+    """Frame `index` as the camera delivered it: the sensor's colour stream when the run has one."""
+    path = run_dir / names.frame_file(sensor_rgb_dir(run_dir), index)
     rgb = read_png(path, np.uint8)
     if rgb.ndim != 3 or rgb.shape[2] != 3:
         raise UserError(f"{path}: not an RGB image")
@@ -85,7 +86,7 @@ def detect_frame(detector: Detector, run_dir: Path, index: int, timestamp: float
         raise UserError(f"{depth_path}: depth is {depth.shape[1]}x{depth.shape[0]} but the RGB frame is {rgb.shape[1]}x{rgb.shape[0]}")
     if depth.shape != (intrinsics.height, intrinsics.width):
         raise UserError(f"{depth_path}: {depth.shape[1]}x{depth.shape[0]} does not match {names.CAMERA_INFO}")
-    return DetectionFrame(index=index, timestamp=round(float(timestamp), 6), image=names.frame_file(names.RGB, index),
+    return DetectionFrame(index=index, timestamp=round(float(timestamp), 6), image=names.frame_file(sensor_rgb_dir(run_dir), index),
                           detections=find_fruit(detector, rgb, depth, pose, settings, intrinsics))
 
 
@@ -96,7 +97,7 @@ def _detect(run_dir: Path, config: Config, job: Job) -> None:
     intrinsics = files.read_camera_info(run_dir)
     depth_dir = sensor_depth_dir(run_dir)
     cache = run_dir / names.DETECT_CACHE
-    key = f"{detector.path}@{settings.score_threshold}@{','.join(settings.windows)}@{settings.mirror}@{depth_dir}"
+    key = f"{detector.path}@{settings.score_threshold}@{','.join(settings.windows)}@{settings.mirror}@{depth_dir}@{sensor_rgb_dir(run_dir)}"
     frames = [] if job.force else _read_cache(cache, key)
     ownership.record(cache)  # appended to as frames finish, not renamed into place: recorded here
     with open(cache, "w", encoding="utf-8") as out:  # rewritten from what was valid, then appended to

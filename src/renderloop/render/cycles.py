@@ -1,8 +1,10 @@
 """Blender Cycles backend: one greenhouse scene per process, then one path-traced RGB-D frame per pose.
 
-The scene is built once (meshes from numpy arrays, procedural materials, randomised
+The scene is built once (the object list of `scene/objects.py` as meshes from numpy
+arrays, procedural materials from the table in `scene/materials.py`, randomised
 greenhouse light) and `render()` only moves the camera, so with persistent data Cycles
 keeps its BVH between frames and the per-frame cost is path tracing plus a short sync.
+`renderer.device` picks the CPU or an NVIDIA GPU (OptiX or CUDA, bpy's own kernels).
 
 Each frame is written as one multi-layer EXR into a private temp directory and read
 back with `OpenEXR`: that is the one route in bpy 5 that gives the exact float passes
@@ -27,7 +29,6 @@ import tempfile
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 
 import bpy
@@ -36,14 +37,13 @@ import OpenEXR
 from mathutils import Matrix
 
 from renderloop.config import Config
+from renderloop.errors import UserError
 from renderloop.render import materials as looks
 from renderloop.render.camera import Intrinsics, to_gl_camera
 from renderloop.render.frame import RenderedFrame
-from renderloop.scene import meshes
 from renderloop.scene.meshes import Mesh
 from renderloop.scene.model import MAX_PEPPER_ID, Scene
-from renderloop.scene.plant_meshes import plant_meshes
-from renderloop.scene.world import WALL_THICKNESS, WORKSTATION_COLUMN, table_boxes, wall_boxes
+from renderloop.scene.objects import SceneObject, greenhouse_objects
 
 __all__ = ["CyclesRenderer", "RenderedFrame", "SceneObject", "greenhouse_objects", "VIEW_TRANSFORM"]
 
@@ -55,58 +55,6 @@ SENSOR_WIDTH_MM = 36.0  # any value works: the lens is derived from fx and this 
 DEFAULT_ROOM = (12.0, 10.0, 3.5)
 _PASSES = {"rgb": "ViewLayer.Combined", "z": "ViewLayer.Depth.Z", "index": "ViewLayer.Object Index.X"}
 _active: CyclesRenderer | None = None
-
-
-@dataclass(frozen=True)
-class SceneObject:
-    """One Blender object: a numpy mesh, a material name of `materials.greenhouse_materials`,
-    the Object Index pass value, an object colour (sRGB, for materials that read it) and
-    an optional per-vertex sRGB colour (the leaf colour attribute)."""
-
-    name: str
-    mesh: Mesh
-    material: str = "object_color"
-    pass_index: int = 0
-    rgb: tuple[float, float, float] | None = None
-    smooth: bool = False
-    vertex_rgb: np.ndarray | None = None
-
-
-def _table_mesh(center: Sequence[float], size: Sequence[float]) -> Mesh:
-    """A slab on four legs, the same boxes as `world.xml`."""
-    return meshes.merge([meshes.box(c, 2 * np.asarray(half)) for _, c, half in table_boxes("table", center, size)])
-
-
-def greenhouse_objects(scene: Scene) -> list[SceneObject]:
-    """The whole greenhouse as few objects: shared static parts merged, one object per pepper
-    (its pass_index is its id), and per plant one pot, one stem, one leaf and one flower object."""
-    length, width, _ = scene.room
-    t = WALL_THICKNESS
-    walls = [meshes.box(center, 2 * np.asarray(half)) for _, center, half in wall_boxes(scene.room)]
-    station = scene.workstation
-    column_height, column_radius = WORKSTATION_COLUMN
-    top = (station.center[0], station.center[1], station.size[2])
-    column = meshes.tube(np.array([top, (top[0], top[1], top[2] + column_height)]), column_radius, sides=24)
-    objects = [
-        SceneObject("floor", meshes.box((0, 0, -0.05), (length + 2 * t, width + 2 * t, 0.1)), "floor"),
-        SceneObject("walls", meshes.merge(walls), "wall"),
-        SceneObject("tables", meshes.merge([_table_mesh(row.table.center, row.table.size) for row in scene.rows]), "table"),
-        SceneObject("workstation", meshes.merge([_table_mesh(station.center, station.size), column]), "workstation"),
-    ]
-    for plant in scene.plants:
-        peppers = scene.peppers_of(plant.id)
-        parts = plant_meshes(plant, peppers)
-        objects.append(SceneObject(f"pot_{plant.id}", parts.pot, "pot"))
-        objects.append(SceneObject(f"stem_{plant.id}", parts.stem, "stem", smooth=True))
-        if parts.leaves:
-            colors = np.concatenate([np.tile(leaf.rgb, (len(m.vertices), 1)) for leaf, m in zip(plant.leaves, parts.leaves)])
-            objects.append(SceneObject(f"leaves_{plant.id}", meshes.merge(parts.leaves), "leaf", smooth=True, vertex_rgb=colors))
-        if parts.flowers is not None:
-            objects.append(SceneObject(f"flowers_{plant.id}", parts.flowers, "flower"))
-        for pepper in peppers:
-            objects.append(SceneObject(f"pepper_{pepper.id}", parts.peppers[pepper.id], f"pepper_{pepper.color}",
-                                       pass_index=pepper.id, rgb=tuple(pepper.rgb), smooth=True))
-    return objects
 
 
 def _bpy_mesh(name: str, mesh: Mesh) -> bpy.types.Mesh:
@@ -143,7 +91,10 @@ def srgb_oetf_u8(linear: np.ndarray) -> np.ndarray:
 
 
 class CyclesRenderer:
-    """Path-traced RGB, exact planar depth and the pepper instance mask for camera poses in one scene."""
+    """Path-traced RGB, exact planar depth and the pepper instance mask for camera poses in one scene.
+
+    `device` says what it renders on ("cpu", "optix" or "cuda"; `renderer.device: auto` picks) and
+    `device_names` names the GPUs."""
 
     def __init__(self, scene: Scene, config: Config, intrinsics: Intrinsics) -> None:
         rng = np.random.default_rng(np.random.SeedSequence([scene.seed, LIGHTING_STREAM]))
@@ -201,7 +152,8 @@ class CyclesRenderer:
         r, s = config.renderer, self._scene
         s.render.engine = "CYCLES"
         c = s.cycles
-        c.device = "CPU"
+        self.device, self.device_names = _choose_device(r.device)
+        c.device = "CPU" if self.device == "cpu" else "GPU"
         c.samples = r.samples
         c.use_adaptive_sampling = r.adaptive_threshold > 0
         if r.adaptive_threshold > 0:
@@ -215,7 +167,7 @@ class CyclesRenderer:
         c.use_denoising = denoise
         if denoise:
             c.denoiser = "OPENIMAGEDENOISE"
-            c.denoising_use_gpu = False
+            c.denoising_use_gpu = self.device != "cpu"  # denoise where the frame already is
             c.denoising_input_passes = "RGB_ALBEDO_NORMAL"
             c.denoising_prefilter = "ACCURATE" if r.denoise_quality == "high" else "FAST"
             c.denoising_quality = r.denoise_quality.upper()
@@ -263,18 +215,19 @@ class CyclesRenderer:
 
     def _add_objects(self, objects: list[SceneObject]) -> None:
         materials = looks.greenhouse_materials()
-        for item in objects:
-            if not 0 <= item.pass_index <= MAX_PEPPER_ID:
-                raise ValueError(f"{item.name}: pass_index {item.pass_index} outside 0..{MAX_PEPPER_ID}")
-            if len(item.mesh.faces) == 0:
+        for item in objects:  # the one place an object of the list becomes a Blender object
+            mesh = item.triangles()
+            if len(mesh.faces) == 0:
                 continue
-            data = _bpy_mesh(item.name, item.mesh)
+            data = _bpy_mesh(item.name, mesh)
             if item.vertex_rgb is not None:
                 linear = looks.srgb_to_linear_array(np.asarray(item.vertex_rgb, dtype=float).reshape(-1, 3))
                 rgba = np.column_stack([linear, np.ones(len(linear))]).astype(np.float32)
                 data.attributes.new(looks.LEAF_COLOR_ATTRIBUTE, "FLOAT_COLOR", "POINT").data.foreach_set("color", rgba.ravel())
             if item.smooth:
                 data.shade_smooth()
+            if item.material not in materials:
+                raise ValueError(f"{item.name}: material {item.material!r} has no Cycles recipe")
             data.materials.append(materials[item.material])
             obj = bpy.data.objects.new(item.name, data)
             obj.pass_index = item.pass_index
@@ -362,6 +315,46 @@ def _quiet_stdout() -> Iterator[None]:
     finally:
         os.dup2(saved, 1)
         os.close(saved)
+
+
+GPU_BACKENDS = ("OPTIX", "CUDA")  # in this order: OptiX uses the ray-tracing cores of the GPUs that have them
+
+
+def _gpu_devices() -> tuple[str, list[str]] | None:
+    """The first GPU backend with a device that answers, enabled in Cycles' preferences with only its own
+    devices (no CPU beside them): (backend, device names), or None. Asked only when a GPU is wanted:
+    probing the drivers costs time and, per Blender, can crash on broken ones."""
+    import _cycles
+
+    prefs = bpy.context.preferences.addons["cycles"].preferences
+    built = dict(zip(("CUDA", "OPTIX"), _cycles.get_device_types()[:2]))
+    for backend in GPU_BACKENDS:
+        if not built[backend]:
+            continue
+        found = [device for device in prefs.get_device_list(backend) if device[1] == backend]  # (name, type, id, ...)
+        if found:
+            prefs.compute_device_type = backend
+            ids = {device[2] for device in found}
+            for entry in prefs.devices:
+                entry.use = entry.type == backend and entry.id in ids
+            return backend, [device[0] for device in found]
+    return None
+
+
+def _choose_device(wanted: str) -> tuple[str, list[str]]:
+    """`renderer.device` to what Cycles renders on: ("cpu", []) or ("optix" | "cuda", GPU names). Called after
+    Blender's factory reset, which also resets the preferences the GPU choice is made in."""
+    if wanted == "cpu":
+        return "cpu", []
+    gpu = _gpu_devices()
+    if gpu is None:
+        if wanted == "gpu":
+            raise UserError("renderer.device: gpu, but Cycles finds no CUDA or OptiX GPU on this machine (use cpu or auto)")
+        log.info("renderer.device auto: no CUDA or OptiX GPU answers, Cycles renders on the CPU")
+        return "cpu", []
+    backend, names = gpu
+    log.info("Cycles renders on %s: %s", backend, ", ".join(names))
+    return backend.lower(), names
 
 
 def _oidn_available() -> bool:

@@ -24,9 +24,11 @@ from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
 from renderloop.render.depth_noise import sensor_depth
 from renderloop.render.frames import encode_frame
+from renderloop.render.sensor import sensor_rgb
 from renderloop.scene.model import Scene
 
 BACKENDS = ("cycles", "raster")
+DEPTH_NOISE_STREAM, COLOUR_SENSOR_STREAM = 0xD3, 0x5E  # the named random streams of the two sensor models
 CHUNK = 4  # frames per task: large enough to amortise a task, small enough to balance 2 workers
 
 Rendered = list[tuple[int, dict[str, bytes], dict[str, float]]]
@@ -54,11 +56,15 @@ class FrameWorker:
     def render_pose(self, index: int, pose: np.ndarray) -> tuple[int, dict[str, bytes], dict[str, float]]:
         """Frame `index` of the run, seen from `pose` (T_world_optical)."""
         frame = self.renderer.render(pose)
-        noise, sensor = self.config.renderer.depth_noise, None
-        if noise.enabled:  # seeded per frame, so the result does not depend on which worker drew it
-            rng = np.random.default_rng(np.random.SeedSequence([self.config.seed, 0xD3, index]))
-            sensor = sensor_depth(frame.depth, noise, self.config.camera.clip, rng)
-        return index, encode_frame(frame, sensor), frame.timings
+        config, depth, rgb = self.config, None, None
+        # each sensor seeded per frame, so a frame does not depend on which worker drew it
+        if config.renderer.depth_noise.enabled:
+            rng = np.random.default_rng(np.random.SeedSequence([config.seed, DEPTH_NOISE_STREAM, index]))
+            depth = sensor_depth(frame.depth, config.renderer.depth_noise, config.camera.clip, rng)
+        if config.camera.sensor.enabled:
+            rng = np.random.default_rng(np.random.SeedSequence([config.seed, COLOUR_SENSOR_STREAM, index]))
+            rgb = sensor_rgb(frame.rgb, frame.depth, config.camera.sensor, rng)
+        return index, encode_frame(frame, depth, rgb), frame.timings
 
     def render(self, indices: list[int]) -> Rendered:
         return [self.render_pose(index, self.poses[index]) for index in indices]
@@ -80,14 +86,20 @@ def threads_per_worker(config: Config, workers: int) -> Config:
 
 
 _process_worker: FrameWorker | None = None
+_start_error: Exception | None = None
 
 
 def _start_process_worker(config: Config, scene: Scene, poses: np.ndarray, backend: str) -> None:
-    global _process_worker
-    _process_worker = FrameWorker(config, scene, poses, backend)
+    global _process_worker, _start_error
+    try:
+        _process_worker = FrameWorker(config, scene, poses, backend)
+    except Exception as error:  # kept for the first task: a failing initializer only tells the driver "BrokenProcessPool"
+        _start_error = error
 
 
 def _render_in_process_worker(indices: list[int]) -> Rendered:
+    if _start_error is not None:
+        raise _start_error  # e.g. the UserError of `renderer.device: gpu` without a GPU, one line as without workers
     assert _process_worker is not None
     return _process_worker.render(indices)
 

@@ -16,6 +16,7 @@ from PIL import Image
 
 from renderloop.io.atomic import write_bytes
 from renderloop.io.images import read_image_as
+from renderloop.config import Config
 from renderloop.render.frame import RenderedFrame
 from renderloop.rundir import names
 
@@ -23,9 +24,11 @@ DEPTH_SCALE = 5000.0  # PNG units per metre (TUM RGB-D)
 MAX_DEPTH = 65535 / DEPTH_SCALE
 
 
-def frame_paths(run_dir: Path, index: int, sensor: bool) -> dict[str, Path]:
-    streams = [names.RGB, names.DEPTH, names.MASKS] + ([names.DEPTH_SENSOR] if sensor else [])
-    return {stream: run_dir / names.frame_file(stream, index) for stream in streams}
+def streams_of(config: Config) -> tuple[str, ...]:
+    """The image streams a run renders: the ideal ones, and the sensor's where the config asks for them."""
+    sensor = ((names.DEPTH_SENSOR,) if config.renderer.depth_noise.enabled else ()) + (
+        (names.RGB_SENSOR,) if config.camera.sensor.enabled else ())
+    return (names.RGB, names.DEPTH, names.MASKS, *sensor)
 
 
 def sensor_depth_dir(run_dir: Path) -> str:
@@ -33,8 +36,13 @@ def sensor_depth_dir(run_dir: Path) -> str:
     return names.DEPTH_SENSOR if (Path(run_dir) / names.DEPTH_SENSOR).is_dir() else names.DEPTH
 
 
-def frame_done(run_dir: Path, index: int, sensor: bool) -> bool:
-    return all(path.is_file() for path in frame_paths(run_dir, index, sensor).values())
+def sensor_rgb_dir(run_dir: Path) -> str:
+    """The colour a real camera would give: the sensor stream when the run rendered one, else the ideal colour."""
+    return names.RGB_SENSOR if (Path(run_dir) / names.RGB_SENSOR).is_dir() else names.RGB
+
+
+def frame_done(run_dir: Path, index: int, streams: tuple[str, ...]) -> bool:
+    return all((run_dir / names.frame_file(stream, index)).is_file() for stream in streams)
 
 
 def _png(array: np.ndarray) -> bytes:
@@ -53,11 +61,13 @@ def decode_depth(units: np.ndarray) -> np.ndarray:
     return units.astype(np.float32) / DEPTH_SCALE
 
 
-def encode_frame(frame: RenderedFrame, sensor_depth: np.ndarray | None) -> dict[str, bytes]:
+def encode_frame(frame: RenderedFrame, sensor_depth: np.ndarray | None, sensor_rgb: np.ndarray | None = None) -> dict[str, bytes]:
     """PNG bytes of each file of a frame, keyed by directory; workers send these to the one writer."""
     files = {names.RGB: _png(frame.rgb), names.DEPTH: _png(encode_depth(frame.depth))}
     if sensor_depth is not None:
         files[names.DEPTH_SENSOR] = _png(encode_depth(sensor_depth))
+    if sensor_rgb is not None:
+        files[names.RGB_SENSOR] = _png(sensor_rgb)
     files[names.MASKS] = _png(frame.mask.astype(np.uint16))
     return files
 
@@ -77,9 +87,8 @@ def read_png(path: Path, dtype: type) -> np.ndarray:
 
 
 def read_frame(run_dir: Path, index: int) -> RenderedFrame:
-    paths = frame_paths(run_dir, index, sensor=False)
     return RenderedFrame(
-        rgb=read_png(paths[names.RGB], np.uint8),
-        depth=decode_depth(read_png(paths[names.DEPTH], np.uint16)),
-        mask=read_png(paths[names.MASKS], np.uint16),
+        rgb=read_png(run_dir / names.frame_file(names.RGB, index), np.uint8),
+        depth=decode_depth(read_png(run_dir / names.frame_file(names.DEPTH, index), np.uint16)),
+        mask=read_png(run_dir / names.frame_file(names.MASKS, index), np.uint16),
     )

@@ -1,10 +1,13 @@
 """Procedural Cycles materials and greenhouse lighting, built as node trees in `bpy`.
 
-Everything is procedural (no image textures to ship or load) and every random
-choice comes from the generator the caller passes, so one scene seed gives one
-look. Colours in `scene.json` are display (sRGB) values, as a person would pick
-them and as the MuJoCo raster view shows them; Cycles shades in linear Rec.709,
-so constants and per-object colours go through `srgb_to_linear` first.
+The recipes (node trees) live here; their numbers (colours, roughness, coat, blotches,
+translucency) come from the material table `scene/materials.py`, the one place to
+change a material for every view. Everything is procedural (no image textures to ship
+or load) and every random choice comes from the generator the caller passes, so one
+scene seed gives one look. Colours in `scene.json` and the table are display (sRGB)
+values, as a person would pick them and as the MuJoCo raster view shows them; Cycles
+shades in linear Rec.709, so constants and per-object colours go through
+`srgb_to_linear` first.
 
 Per-instance colours are not baked into one material per object: peppers read
 their colour from the object's `color` (Object Info node) and the merged leaf
@@ -21,15 +24,10 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
+from renderloop.scene.materials import MATERIALS, Material
 from renderloop.scene.meshes import frame_from_axis
 
 LEAF_COLOR_ATTRIBUTE = "leaf_rgb"
-PEPPER_FINISH = {  # colour class -> (roughness, coat weight): ripe fruit have the glossier wax
-    "red": (0.16, 0.35),
-    "orange": (0.17, 0.35),
-    "yellow": (0.18, 0.3),
-    "green": (0.24, 0.2),
-}
 
 
 def srgb_to_linear_array(rgb: np.ndarray) -> np.ndarray:
@@ -90,8 +88,17 @@ class _Tree:
         self.tree.links.new(shader, out.inputs[0])
 
 
-def _principled(t: _Tree, color, roughness: float, **inputs) -> bpy.types.NodeSocket:
+def _principled(t: _Tree, color, roughness, look: Material, **inputs) -> bpy.types.NodeSocket:
+    """A Principled BSDF with the table's numbers; inputs at Blender's defaults are left untouched."""
     values = {"Base Color": color if isinstance(color, bpy.types.NodeSocket) else (*color, 1.0), "Roughness": roughness}
+    if look.metallic:
+        values["Metallic"] = look.metallic
+    if look.specular is not None:
+        values["Specular IOR Level"] = look.specular
+    if look.coat:
+        values.update({"Coat Weight": look.coat, "Coat Roughness": look.coat_roughness})
+    if look.subsurface:
+        values["Subsurface Weight"] = look.subsurface
     values.update(inputs)
     return t.node("ShaderNodeBsdfPrincipled", values).outputs[0]
 
@@ -107,11 +114,18 @@ def _varied(t: _Tree, color, scale: float, amount: float) -> bpy.types.NodeSocke
     return t.mix_rgb(1.0, color, t.node("ShaderNodeCombineXYZ", {0: gain, 1: gain, 2: gain}).outputs[0], "MULTIPLY")
 
 
-def leaf_material() -> bpy.types.Material:
+def _translucent(t: _Tree, look: Material, surface: bpy.types.NodeSocket, color) -> bpy.types.NodeSocket:
+    """The surface with a share of Translucent BSDF in `color`: light through a thin blade or petal."""
+    glow = t.node("ShaderNodeBsdfTranslucent", {"Color": color}).outputs[0]
+    return t.node("ShaderNodeMixShader", {0: look.translucency, 1: surface, 2: glow}).outputs[0]
+
+
+def leaf_material(name: str = "leaf") -> bpy.types.Material:
     """Leaf blade: per-leaf colour attribute, midrib and lateral veins from the leaf uv
     (u along the midrib 0..1, v across, 0.5 on the midrib), blotchy variation, a vein
     bump, and a Translucent BSDF share so back-lit leaves glow as real canopies do."""
-    material, t = _new_material("leaf")
+    look = MATERIALS[name]
+    material, t = _new_material(name)
     uv = t.node("ShaderNodeSeparateXYZ", {0: t.node("ShaderNodeTexCoord").outputs["UV"]})
     u, across = uv.outputs[0], t.math("ABSOLUTE", t.math("SUBTRACT", uv.outputs[1], 0.5))
     midrib = t.map_range(across, 0.0, 0.035, 1.0, 0.0, smooth=True)
@@ -121,67 +135,56 @@ def leaf_material() -> bpy.types.Material:
     lateral = t.math("MULTIPLY", lateral, t.map_range(u, 0.85, 0.97, 1.0, 0.0))
     veins = t.math("MAXIMUM", midrib, lateral)
     base = t.node("ShaderNodeAttribute", attribute_type="GEOMETRY", attribute_name=LEAF_COLOR_ATTRIBUTE).outputs["Color"]
-    base = _varied(t, base, 30.0, 0.12)
-    vein_color = t.mix_rgb(1.0, base, (1.45, 1.5, 1.05), "MULTIPLY")
+    base = _varied(t, base, look.variation_scale, look.variation)
+    vein_color = t.mix_rgb(1.0, base, look.vein_gain, "MULTIPLY")
     color = t.mix_rgb(t.math("MULTIPLY", veins, 0.65), base, vein_color)
-    bump = t.node("ShaderNodeBump", {"Strength": 0.15, "Height": veins})
-    surface = _principled(t, color, 0.45, **{"Specular IOR Level": 0.4, "Normal": bump.outputs[0]})
-    glow = t.node("ShaderNodeBsdfTranslucent", {"Color": t.mix_rgb(1.0, color, (1.3, 1.5, 0.8), "MULTIPLY")}).outputs[0]
-    mixed = t.node("ShaderNodeMixShader", {0: 0.3, 1: surface, 2: glow}).outputs[0]
-    t.output(mixed)
+    bump = t.node("ShaderNodeBump", {"Strength": look.bump, "Height": veins})
+    surface = _principled(t, color, look.roughness, look, Normal=bump.outputs[0])
+    t.output(_translucent(t, look, surface, t.mix_rgb(1.0, color, look.glow_gain, "MULTIPLY")))
     return material
 
 
-def pepper_material(color_class: str) -> bpy.types.Material:
+def pepper_material(name: str) -> bpy.types.Material:
     """Glossy, waxy fruit skin; the base colour is the object's colour (pepper.rgb), with slight
     blotchy variation, so one material serves every pepper of a colour class."""
-    roughness, coat = PEPPER_FINISH.get(color_class, (0.2, 0.3))
-    material, t = _new_material(f"pepper_{color_class}")
-    color = _varied(t, t.node("ShaderNodeObjectInfo").outputs["Color"], 18.0, 0.08)
-    rough = t.map_range(t.noise(40.0), 0.3, 0.7, roughness * 0.8, roughness * 1.2)
-    t.output(_principled(t, color, rough, **{"Coat Weight": coat, "Coat Roughness": 0.08, "Specular IOR Level": 0.6}))
+    look = MATERIALS[name]
+    material, t = _new_material(name)
+    color = _varied(t, t.node("ShaderNodeObjectInfo").outputs["Color"], look.variation_scale, look.variation)
+    low, high = look.roughness_range
+    rough = t.map_range(t.noise(look.roughness_scale), 0.3, 0.7, look.roughness * low, look.roughness * high)
+    t.output(_principled(t, color, rough, look))
     return material
 
 
-def flower_material() -> bpy.types.Material:
-    """Pale petals with a yellow centre: the flower's planar uv puts its centre at (0.5, 0.5)."""
-    material, t = _new_material("flower")
+def flower_material(name: str = "flower") -> bpy.types.Material:
+    """Pale petals with a coloured centre: the flower's planar uv puts its centre at (0.5, 0.5)."""
+    look = MATERIALS[name]
+    material, t = _new_material(name)
     uv = t.node("ShaderNodeTexCoord").outputs["UV"]
     radius = t.node("ShaderNodeVectorMath", {0: uv, 1: (0.5, 0.5, 0.0)}, operation="DISTANCE").outputs["Value"]
     centre = t.map_range(radius, 0.1, 0.14, 1.0, 0.0, smooth=True)
-    color = t.mix_rgb(centre, srgb_to_linear((0.96, 0.95, 0.86)), srgb_to_linear((0.92, 0.78, 0.2)))
-    surface = _principled(t, color, 0.5)
-    glow = t.node("ShaderNodeBsdfTranslucent", {"Color": color}).outputs[0]
-    t.output(t.node("ShaderNodeMixShader", {0: 0.3, 1: surface, 2: glow}).outputs[0])
+    color = t.mix_rgb(centre, srgb_to_linear(look.base_rgb), srgb_to_linear(look.accent_rgb))
+    t.output(_translucent(t, look, _principled(t, color, look.roughness, look), color))
     return material
 
 
-def plain_material(name: str, rgb: Sequence[float] | None, roughness: float, metallic: float = 0.0,
-                   variation: float = 0.0, scale: float = 5.0) -> bpy.types.Material:
-    """Principled surface of one colour (sRGB), or of the object's colour when rgb is None."""
+def plain_material(name: str) -> bpy.types.Material:
+    """Principled surface of the table's colour, or of the object's colour where it has none."""
+    look = MATERIALS[name]
     material, t = _new_material(name)
-    color = t.node("ShaderNodeObjectInfo").outputs["Color"] if rgb is None else srgb_to_linear(rgb)
-    if variation > 0:
-        color = _varied(t, color, scale, variation)
-    t.output(_principled(t, color, roughness, Metallic=metallic))
+    color = t.node("ShaderNodeObjectInfo").outputs["Color"] if look.base_rgb is None else srgb_to_linear(look.base_rgb)
+    if look.variation > 0:
+        color = _varied(t, color, look.variation_scale, look.variation)
+    t.output(_principled(t, color, look.roughness, look))
     return material
+
+
+RECIPES = {"plain": plain_material, "leaf": leaf_material, "flower": flower_material, "pepper": pepper_material}
 
 
 def greenhouse_materials() -> dict[str, bpy.types.Material]:
-    """Every material of the greenhouse by the name the scene builder asks for."""
-    materials = {
-        "leaf": leaf_material(),
-        "flower": flower_material(),
-        "stem": plain_material("stem", (0.2, 0.4, 0.1), 0.5, variation=0.1, scale=60.0),
-        "pot": plain_material("pot", (0.06, 0.06, 0.065), 0.55),
-        "table": plain_material("table", (0.55, 0.56, 0.58), 0.35, metallic=0.6, variation=0.05, scale=3.0),
-        "workstation": plain_material("workstation", (0.35, 0.38, 0.45), 0.4, metallic=0.3),
-        "floor": plain_material("floor", (0.5, 0.48, 0.44), 0.9, variation=0.18, scale=2.5),
-        "wall": plain_material("wall", (0.86, 0.88, 0.9), 0.8),
-        "object_color": plain_material("object_color", None, 0.5),
-    }
-    materials.update({f"pepper_{name}": pepper_material(name) for name in PEPPER_FINISH})
-    return materials
+    """Every material of the table that Cycles draws, by name, built from its recipe."""
+    return {name: RECIPES[look.recipe](name) for name, look in MATERIALS.items() if look.recipe is not None}
 
 
 def greenhouse_lighting(scene: bpy.types.Scene, rng: np.random.Generator, room: Sequence[float]) -> dict[str, float]:

@@ -1,10 +1,12 @@
 """The raster backend: MuJoCo's OpenGL renderer on the same meshes and poses as Cycles.
 
 Milliseconds per frame instead of seconds, for tests and previews: the paper's
-"Gazebo quality" next to Cycles. The render world is its own MJCF, built from
-scene.json: every plant part as a mesh (the meshes Cycles draws), each pepper its own
-geom so that the segmentation render gives its instance id, and a mocap camera that
-is moved to each pose. Headless through EGL (renderloop sets MUJOCO_GL=egl on import).
+"Gazebo quality" next to Cycles. The render world is its own MJCF, built from the
+object list Cycles draws (`scene/objects.py`): every plant part as a mesh, the static
+parts as boxes and cylinders, each in the flat display colour of the material table
+(`scene/materials.py`), each pepper its own geom so that the segmentation render
+gives its instance id, and a mocap camera that is moved to each pose. Headless
+through EGL (renderloop sets MUJOCO_GL=egl on import).
 """
 
 from __future__ import annotations
@@ -19,29 +21,29 @@ from renderloop.config import Config
 from renderloop.render.camera import Intrinsics, to_gl_camera
 from renderloop.render.frame import RenderedFrame
 from renderloop.robot.mjcf import fmt
-from renderloop.scene.meshes import Mesh, merge
 from renderloop.scene.model import Scene
-from renderloop.scene.plant_meshes import plant_meshes
-from renderloop.scene.world import MATERIALS, WORKSTATION_COLUMN, table_boxes, wall_boxes
+from renderloop.scene.objects import SceneObject, greenhouse_objects
+from renderloop.scene.world import shape_geom
 
 CAMERA = "render_camera"
-PEPPER_PREFIX = "pepper_"
 
 
-def _rgba(rgb, alpha: float = 1.0) -> str:
-    return fmt(*rgb, alpha)
+def _add_object(asset: ET.Element, world: ET.Element, obj: SceneObject) -> None:
+    """One object of the list as geoms, in its flat display colour: a mesh as a mesh geom named
+    like the object, primitive shapes as one geom each."""
+    rgba = fmt(*obj.display_rgba())
+    if obj.mesh is None:
+        for shape in obj.shapes:
+            shape_geom(world, shape, rgba=rgba)
+        return
+    if len(obj.mesh.faces) == 0:
+        return
+    ET.SubElement(asset, "mesh", name=obj.name, inertia="shell", vertex=" ".join(f"{v:.6f}" for v in obj.mesh.vertices.ravel()),
+                  face=" ".join(map(str, obj.mesh.faces.ravel())))
+    ET.SubElement(world, "geom", name=obj.name, type="mesh", mesh=obj.name, rgba=rgba)
 
 
-def _mesh_asset(asset: ET.Element, name: str, mesh: Mesh) -> None:
-    ET.SubElement(asset, "mesh", name=name, inertia="shell",
-                  vertex=" ".join(f"{v:.6f}" for v in mesh.vertices.ravel()), face=" ".join(map(str, mesh.faces.ravel())))
-
-
-def _box(parent: ET.Element, name: str, center, half, rgba: str) -> None:
-    ET.SubElement(parent, "geom", name=name, type="box", pos=fmt(*center), size=fmt(*half), rgba=rgba)
-
-
-def render_world_xml(scene: Scene, config: Config, intrinsics: Intrinsics) -> str:
+def render_world_xml(objects: list[SceneObject], config: Config, intrinsics: Intrinsics) -> str:
     root = ET.Element("mujoco", model="renderloop_render")
     ET.SubElement(root, "compiler", angle="radian", autolimits="true")
     near, far = config.camera.clip
@@ -56,39 +58,8 @@ def render_world_xml(scene: Scene, config: Config, intrinsics: Intrinsics) -> st
     asset = ET.SubElement(root, "asset")
     world = ET.SubElement(root, "worldbody")
     ET.SubElement(world, "light", name="sun", directional="true", pos="0 0 5", dir="0.3 0.4 -1", diffuse="0.6 0.6 0.6", castshadow="true")
-
-    length, width, _ = scene.room
-    _box(world, "floor", (0, 0, -0.05), (length / 2, width / 2, 0.05), MATERIALS["floor"])
-    for name, center, half in wall_boxes(scene.room):
-        _box(world, name, center, half, MATERIALS["wall"])
-    station = scene.workstation
-    tables = [(f"table_{row.id}", row.table, MATERIALS["table"]) for row in scene.rows]
-    for name, table, rgba in tables + [("workstation", station, MATERIALS["workstation"])]:
-        for box_name, center, half in table_boxes(name, table.center, table.size):
-            _box(world, box_name, center, half, rgba)
-    height, radius = WORKSTATION_COLUMN
-    top = station.size[2]
-    ET.SubElement(world, "geom", name="workstation_arm", type="capsule", size=repr(radius), rgba=MATERIALS["workstation"],
-                  fromto=fmt(station.center[0], station.center[1], top, station.center[0], station.center[1], top + height))
-
-    for plant in scene.plants:
-        peppers = scene.peppers_of(plant.id)
-        parts = plant_meshes(plant, peppers)
-        leaf_rgb = np.mean([leaf.rgb for leaf in plant.leaves], axis=0) if plant.leaves else (0.1, 0.3, 0.06)
-        pieces = [("pot", parts.pot, MATERIALS["pot"]), ("stem", parts.stem, _rgba((0.2, 0.4, 0.1)))]
-        if parts.leaves:
-            pieces.append(("leaves", merge(parts.leaves), _rgba(leaf_rgb)))
-        if parts.flowers is not None:
-            pieces.append(("flowers", parts.flowers, _rgba((0.95, 0.95, 0.85))))
-        for part, mesh, rgba in pieces:
-            name = f"plant{plant.id}_{part}"
-            _mesh_asset(asset, name, mesh)
-            ET.SubElement(world, "geom", name=name, type="mesh", mesh=name, rgba=rgba)
-        for pepper in peppers:
-            name = f"{PEPPER_PREFIX}{pepper.id}"
-            _mesh_asset(asset, name, parts.peppers[pepper.id])
-            ET.SubElement(world, "geom", name=name, type="mesh", mesh=name, rgba=_rgba(pepper.rgb))
-
+    for obj in objects:
+        _add_object(asset, world, obj)
     rig = ET.SubElement(world, "body", name="camera_rig", mocap="true")
     ET.SubElement(rig, "camera", name=CAMERA, fovy=repr(intrinsics.fovy_deg))
     ET.indent(root)
@@ -99,15 +70,17 @@ class RasterRenderer:
     """One MuJoCo render world and OpenGL context; render() moves the camera and draws three passes."""
 
     def __init__(self, scene: Scene, config: Config, intrinsics: Intrinsics):
-        self.model = mujoco.MjModel.from_xml_string(render_world_xml(scene, config, intrinsics))
+        objects = greenhouse_objects(scene)
+        self.model = mujoco.MjModel.from_xml_string(render_world_xml(objects, config, intrinsics))
         self.data = mujoco.MjData(self.model)
         self.near, self.far = config.camera.clip
         self.renderer = mujoco.Renderer(self.model, intrinsics.height, intrinsics.width)
         self.pepper_of_geom = np.zeros(self.model.ngeom + 1, dtype=np.uint16)  # index -1 (background) lands on the extra 0
-        for geom in range(self.model.ngeom):
-            name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, geom) or ""
-            if name.startswith(PEPPER_PREFIX):
-                self.pepper_of_geom[geom] = int(name.removeprefix(PEPPER_PREFIX))
+        for obj in filter(lambda obj: obj.pass_index, objects):  # a mesh's geom has the object's name, a shape's its own
+            for name in [obj.name] if obj.mesh is not None else [shape.name for shape in obj.shapes]:
+                geom = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, name)
+                if geom >= 0:  # -1: an empty mesh, not drawn
+                    self.pepper_of_geom[geom] = obj.pass_index
 
     def render(self, pose: np.ndarray) -> RenderedFrame:
         start = time.perf_counter()

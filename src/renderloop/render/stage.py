@@ -15,12 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from renderloop.config import BouncesConfig, Config
+from renderloop.config import BouncesConfig, Config, SensorConfig
 from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
 from renderloop.render.contact_sheet import draw_contact_sheet
 from renderloop.render.executor import BACKENDS, render_local, render_ray
-from renderloop.render.frames import frame_done, write_frame
+from renderloop.render.frames import frame_done, streams_of, write_frame
 from renderloop.rundir import files, names, ownership
 from renderloop.rundir.models import RenderRecord
 from renderloop.rundir.stage import Job, Stage
@@ -43,8 +43,9 @@ def render_record(run_dir: Path, config: Config, poses: np.ndarray) -> RenderRec
         scene_sha256=_sha256((run_dir / names.SCENE).read_bytes()),
         seed=config.seed,
         camera=config.camera.model_dump(mode="json"),
-        # the thread count says how fast frames come, not what they hold (kept at 0 so older records still match)
-        renderer={**config.renderer.model_dump(mode="json", exclude={"backend"}), "threads": 0},
+        # the thread count and the device say how fast frames come, not what they hold (threads kept at 0 and the
+        # device left out, so older records still match)
+        renderer={**config.renderer.model_dump(mode="json", exclude={"backend", "device"}), "threads": 0},
     )
 
 
@@ -54,6 +55,8 @@ def _recorded(run_dir: Path) -> RenderRecord | None:
         # a record from before the bounces were configurable: its frames had today's defaults, then hard-coded
         renderer = {"bounces": BouncesConfig().model_dump(mode="json"), **recorded.renderer}
         recorded = recorded.model_copy(update={"renderer": renderer})
+    if recorded is not None and "sensor" not in recorded.camera:  # from before the colour sensor: it was off
+        recorded = recorded.model_copy(update={"camera": {**recorded.camera, "sensor": SensorConfig().model_dump(mode="json")}})
     return recorded
 
 
@@ -81,8 +84,8 @@ def _render(run_dir: Path, config: Config, job: Job) -> None:
         clear_frames(run_dir)
         files.write_model(run_dir / names.RENDER_RECORD, record)
 
-    sensor = config.renderer.depth_noise.enabled
-    todo = [i for i in range(len(poses)) if not frame_done(run_dir, i, sensor)]
+    streams = streams_of(config)
+    todo = [i for i in range(len(poses)) if not frame_done(run_dir, i, streams)]
     done = len(poses) - len(todo)
     if job.progress:
         job.progress(done, len(poses))
@@ -111,8 +114,9 @@ def clear_frames(run_dir: Path) -> None:
 def finish_render(run_dir: Path, config: Config, times: np.ndarray) -> None:
     """With every frame written: the camera's intrinsics, the TUM lists of each stream and the contact sheet."""
     files.write_camera_info(run_dir, Intrinsics.from_config(config.camera))
-    for stream in (names.RGB, names.DEPTH) + ((names.DEPTH_SENSOR,) if config.renderer.depth_noise.enabled else ()):
-        files.write_frames_index(run_dir, stream, times)
+    for stream in streams_of(config):
+        if stream != names.MASKS:  # the TUM lists name images; masks are ours alone
+            files.write_frames_index(run_dir, stream, times)
     draw_contact_sheet(run_dir, len(times), run_dir / names.CONTACT_SHEET)
 
 

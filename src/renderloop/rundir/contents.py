@@ -16,7 +16,7 @@ import numpy as np
 from renderloop.config import Config
 from renderloop.planning.waypoints import Waypoint
 from renderloop.render.camera import Intrinsics
-from renderloop.render.frames import sensor_depth_dir
+from renderloop.render.frames import sensor_depth_dir, sensor_rgb_dir
 from renderloop.rundir import files, names
 from renderloop.rundir.models import Counts, Detection
 from renderloop.scene.model import Scene
@@ -29,7 +29,7 @@ class Frame:
     index: int
     timestamp: float
     pose: np.ndarray
-    rgb: Path
+    rgb: Path  # the sensor stream when the run rendered one (what a real camera gives), else the ideal colour
     depth: Path  # the sensor stream when the run rendered one (what a real camera gives), else the ideal depth
     mask: Path
 
@@ -60,7 +60,7 @@ def _frames(run_dir: Path, missing: list[str]) -> list[Frame]:
     if not _present(run_dir, names.POSES, missing):
         return []
     times, poses = files.read_poses(run_dir)
-    streams = (names.RGB, sensor_depth_dir(run_dir), names.MASKS)
+    streams = (sensor_rgb_dir(run_dir), sensor_depth_dir(run_dir), names.MASKS)
     frames = []
     for index, (timestamp, pose) in enumerate(zip(times, poses)):
         paths = [run_dir / names.frame_file(stream, index) for stream in streams]

@@ -159,8 +159,8 @@ def write_config(run_dir: Path, config: Config) -> None:
 
 
 def _what_it_computes(config: Config) -> Config:
-    """The config less the renderer's thread count, which decides how fast frames come, not what they hold."""
-    return config.model_copy(update={"renderer": config.renderer.model_copy(update={"threads": 0})})
+    """The config less the renderer's thread count and device, which decide how fast frames come, not what they hold."""
+    return config.model_copy(update={"renderer": config.renderer.model_copy(update={"threads": 0, "device": "cpu"})})
 
 
 def check_config(run_dir: Path, config: Config) -> None:

@@ -80,6 +80,8 @@ class PlantCount(FileModel):
     unripe_truth: Count
     clusters: list[Point]  # counted ripe fruit, world frame, m
     unripe_clusters: list[Point]
+    unseen: Count | None = None  # ripe fruit of the plant no frame showed (from the masks; null without masks)
+    too_small: Count | None = None  # ripe fruit only ever seen smaller than the detector's findable size
 
 
 class RowCount(FileModel):
@@ -101,6 +103,9 @@ class TotalCount(FileModel):
     unripe_estimate: Count
     unripe_truth: Count
     exact_plants: Unit | None  # share of plants counted exactly
+    unseen: Count | None = None  # ripe fruit no frame showed: the scan's misses, not the detector's
+    too_small: Count | None = None  # ripe fruit seen, but never at the detector's findable size
+    seen_error_pct: Finite | None = None  # 100 (estimate - seen) / seen, seen = truth - unseen - too_small
 
 
 class DetectionTally(FileModel):

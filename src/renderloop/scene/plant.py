@@ -29,6 +29,7 @@ BASE_RGB = {
     "orange": (0.90, 0.33, 0.03),
     "green": (0.10, 0.33, 0.05),
 }
+LEAF_RGB = (0.10, 0.32, 0.06)  # each leaf's colour is this times a uniform draw in [0.75, 1.25] per channel
 
 
 class PepperFitError(Exception):
@@ -172,7 +173,7 @@ class PlantGrower:
                 )
                 blade = meshes.leaf(base, direction, up, **params)
                 if self._inside(blade.vertices) and np.all(blade.vertices[:, 2] > self.pot_top) and self._clear_of_peppers(blade.vertices):
-                    rgb = np.clip(np.array([0.10, 0.32, 0.06]) * self.rng.uniform(0.75, 1.25, size=3), 0.0, 1.0)
+                    rgb = np.clip(np.array(LEAF_RGB) * self.rng.uniform(0.75, 1.25, size=3), 0.0, 1.0)
                     leaves.append(Leaf(base=_round(base), direction=_round(direction), up=_round(up), rgb=_round(rgb),
                                        **{k: _round(v) for k, v in params.items()}))
                     break

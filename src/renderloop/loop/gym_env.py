@@ -1,0 +1,433 @@
+"""`renderloop/PepperScan-v0`: active perception of one pepper plant as a Gymnasium environment.
+
+One episode is one plant of a greenhouse generated from the episode's seed. The robot
+starts hovering at a start view of the plant and has taken a frame there; each action
+picks the next viewpoint around the plant, the robot flies there in the simulation
+(`renderloop.loop.simulation.Simulation`: the same physics, controller and TOPP-RA
+replanning as `renderloop run --online`) until the planned motion ends and the camera is
+within 1 cm of where it was sent (at most 1 s more), the camera takes one frame (rendered
+as `renderloop render` renders a pose: the same renderer, sensor models and per-frame
+seeds), the detector and the fruit points run on it (`OnlinePerception`) and the online
+count (`OnlineCounter`) is updated. The reward is the fruit newly confirmed on the plant
+less the flight time the view cost.
+
+    import gymnasium, renderloop
+    env = gymnasium.make("renderloop/PepperScan-v0", max_views=8)
+    observation, info = env.reset(seed=0)
+    observation, reward, terminated, truncated, info = env.step(env.action_space.sample())
+
+Views. A view is (azimuth, height, distance) about the plant: the camera sits `distance`
+(horizontally) from the plant's axis, in the direction `azimuth` (rad, counter-clockwise
+from world +x: 0 faces the plant from +x, π from -x), `height` above the middle of the
+canopy (`renderloop.planning.waypoints.scan_target`), and looks at that middle with no
+roll (`look_at`); inverse kinematics (`camera_pose_to_dofs`) gives the robot's q*.
+
+Action: a float32 Box of 3 in [-1, 1], scaled linearly to the view:
+    azimuth  = π a[0]                                  rad, in [-π, π]
+    height   = 0.3 a[1]                                m, in [-0.3, 0.3]
+    distance = 0.55 + 0.2 a[2]                         m, in [0.35, 0.75]
+Values outside [-1, 1] are clipped (and NaN reads as 0).
+
+Projection: the action is never refused. A view is reachable when the arm's inverse
+kinematics has a solution, and the path to it is clear: the robot flies from the current
+view along the ring (the views in between, azimuth along the shorter way round, height and
+distance linearly), through waypoints at most 10° apart, and every q* on the straight
+segments between them (every 2 cm) is checked in MuJoCo against the greenhouse with the
+planner's clearance (`renderloop.planning.check.check_trajectory`: nothing within 3 cm,
+the body inside the room). When the requested view is not reachable, the flown view is
+the reachable view nearest to it in azimuth on its ring (same height and distance, 5°
+steps, ties broken towards the current azimuth); when none on that ring is, the same search
+runs on rings whose height and distance are moved a quarter, a half, three quarters of the
+way back towards the current view's, and finally on the current view's own ring, where
+the current view itself is always reachable. A view within 1 mm of the current one is the
+current one: the robot then hovers there for 0.5 s and takes another frame (as it does in
+the rare case that TOPP-RA finds no parameterisation of the flight).
+
+Observation (a Dict):
+    rgb          (H, W, 3) uint8, the frame taken at the view (the colour sensor's when the config has one)
+    depth        (H, W) float32, planar depth in m as the sensor reports it (0 = no return)
+    camera_pose  (7,) float32, the camera's optical frame in the world: x y z qx qy qz qw
+    counter      (4,) float32: fruit confirmed on this plant so far, the ripe among them,
+                 frames taken (the start view included), flight time so far (s)
+
+Reward: the change in the number of fruit confirmed on the plant (counted clusters with at
+least `counting.min_views` detections, the count's own rule) minus `time_cost` times the
+flight seconds of the step. The count of all frames so far is redone at every step, so two
+clusters merging can lower it: summed over an episode the reward is the final confirmed
+count less the time cost of the whole flight.
+
+Episode end: `terminated` once `max_views` views have been flown (the start view is not
+one of them); `truncated` only when `max_flight_time` is given and the flight time so far
+reaches it. `info`: the plant and the scene seed, the plant's true fruit (`true_fruit`,
+`true_ripe`, from the scene), the confirmed counts, the view requested (after clipping)
+and the view flown (`view`: azimuth, height, distance), whether it was projected, the q*
+flown to, and the step's flight time.
+
+`reset(seed=...)` draws, from the environment's generator, the scene seed, the plant (a
+bearing one) and the start view's side (azimuth 0 or π, height 0, distance 0.55 m; the
+nearest reachable azimuth on that ring); `options` may fix `scene_seed` and `plant`. Each scene's
+files live in a directory of the environment's own temporary directory (or of `run_dir`),
+kept for the last few scenes so that a seed that comes back resets quickly; `close()`
+removes the temporary directory. The detector is built once per environment.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import tempfile
+import weakref
+from collections import OrderedDict
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import mujoco
+import numpy as np
+from gymnasium import spaces
+from scipy.spatial.transform import Rotation
+
+from renderloop.config import Config, load_config
+from renderloop.counting.online import OnlineCounter
+from renderloop.errors import UserError
+from renderloop.io.tum import as_stored
+from renderloop.loop.sensors import Frame
+from renderloop.loop.simulation import Simulation
+from renderloop.loop.stage import OnlinePerception
+from renderloop.planning.check import check_trajectory
+from renderloop.planning.trajectory import path_norm
+from renderloop.planning.waypoints import scan_target
+from renderloop.render.executor import FrameWorker
+from renderloop.render.frames import MAX_DEPTH
+from renderloop.robot.kinematics import (
+    UnreachablePose,
+    camera_pose_to_dofs,
+    dofs_to_camera_pose,
+    homogeneous,
+    look_at,
+)
+from renderloop.rundir import names
+from renderloop.scene.model import Plant, Scene
+from renderloop.sim.flight import Reference
+
+ENV_ID = "renderloop/PepperScan-v0"
+
+HEIGHT_RANGE = 0.3  # m above or below the canopy's middle
+DISTANCE_RANGE = (0.35, 0.75)  # m, camera to the plant's axis, horizontally
+WAYPOINT_STEP = math.radians(10.0)  # largest azimuth between the waypoints of a flight around the plant
+SEARCH_STEP = math.radians(5.0)  # azimuth step of the search for the nearest reachable view
+RING_BLENDS = (1.0, 0.75, 0.5, 0.25, 0.0)  # rings searched: the requested one, then towards the current view's
+CHECK_STEP = 0.02  # path length (m, plus 0.3 m per rad) between checked q* samples
+STAY = 0.5  # s the robot hovers when the view flown is the view it is at
+SAME_VIEW = 1e-3  # m: a view nearer than this to the current one is the current one
+SETTLE_TOLERANCE = 0.01  # m: the camera counts as arrived this close to its planned position
+MAX_SETTLE = 1.0  # s it may take after the planned motion ends to come that close
+SCENES_KEPT = 16  # scene directories kept in the temporary directory (a seed that comes back resets fast)
+SCENE_SEEDS = 2**31  # scene seeds are drawn from [0, SCENE_SEEDS)
+MARGIN = np.float32(0.01)  # on the camera pose's bounds: the room, and unit quaternions, as float32 rounds them
+
+
+@dataclass(frozen=True)
+class View:
+    azimuth: float  # rad, counter-clockwise from world +x, in (-π, π]
+    height: float  # m above the canopy's middle
+    distance: float  # m, camera to the plant's axis, horizontally
+
+    def array(self) -> np.ndarray:
+        return np.array([self.azimuth, self.height, self.distance])
+
+
+def wrap(angle: float) -> float:
+    """An angle in (-π, π]."""
+    wrapped = math.remainder(angle, 2 * math.pi)
+    return math.pi if wrapped == -math.pi else wrapped
+
+
+def action_to_view(action: np.ndarray) -> View:
+    """The view an action asks for, clipped to the ranges (NaN reads as 0)."""
+    a = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64).reshape(3), nan=0.0), -1.0, 1.0)
+    low, high = DISTANCE_RANGE
+    return View(wrap(math.pi * a[0]), HEIGHT_RANGE * a[1], (low + high) / 2 + (high - low) / 2 * a[2])
+
+
+def camera_position(plant: Plant, view: View) -> np.ndarray:
+    direction = np.array([math.cos(view.azimuth), math.sin(view.azimuth), 0.0])
+    return scan_target(plant) + view.distance * direction + np.array([0.0, 0.0, view.height])
+
+
+def pose_vector(pose: np.ndarray) -> np.ndarray:
+    """T_world_optical as x y z qx qy qz qw."""
+    return np.concatenate([pose[:3, 3], Rotation.from_matrix(pose[:3, :3]).as_quat()]).astype(np.float32)
+
+
+class Projector:
+    """Which views of one plant the robot can fly to from where it is: the projection rule of the module docstring."""
+
+    def __init__(self, config: Config, scene: Scene, plant: Plant, world: Path) -> None:
+        self.arm, self.plant, self.room = config.robot.arm, plant, tuple(scene.room)
+        self.model = mujoco.MjModel.from_xml_path(str(world))  # its own copy: the check sets clearance margins on it
+
+    def dofs(self, view: View) -> np.ndarray | None:
+        """q* that put the camera at the view looking at the canopy's middle; None when the arm cannot."""
+        position = camera_position(self.plant, view)
+        try:
+            return camera_pose_to_dofs(look_at(position, scan_target(self.plant)), self.arm)
+        except UnreachablePose:
+            return None
+
+    def clear(self, dofs: np.ndarray) -> bool:
+        """Every q* (rows) free of the greenhouse, with the planner's clearance, and inside the room."""
+        try:
+            check_trajectory(self.model, np.arange(len(dofs)) * 0.1, np.asarray(dofs), self.room)
+        except UserError:
+            return False
+        return True
+
+    def path(self, start: View | None, end: View) -> list[np.ndarray] | None:
+        """The waypoints (q*, the start's excluded) that fly from `start` round the plant to `end`, or None when
+        the end cannot be reached or the way there is not clear. No start: the end alone (the start view)."""
+        target = self.dofs(end)
+        if target is None or not self.clear(target[None]):  # the cheap test first
+            return None
+        if start is None:
+            return [target]
+        turn = wrap(end.azimuth - start.azimuth)
+        pieces = max(1, math.ceil(abs(turn) / WAYPOINT_STEP - 1e-9))
+        views = [View(wrap(start.azimuth + turn * f), start.height + (end.height - start.height) * f,
+                      start.distance + (end.distance - start.distance) * f) for f in np.linspace(0.0, 1.0, pieces + 1)]
+        dofs = [self.dofs(view) for view in views]
+        if any(q is None for q in dofs):
+            return None
+        samples = [dofs[0][None]]
+        for a, b in zip(dofs[:-1], dofs[1:]):
+            b = b.copy()
+            b[3] = a[3] + wrap(b[3] - a[3])  # yaw the short way, as the planner unwraps it
+            count = max(1, math.ceil(float(path_norm(b - a)) / CHECK_STEP))
+            samples.append(a + np.outer(np.linspace(0.0, 1.0, count + 1)[1:], b - a))
+        if not self.clear(np.vstack(samples)):
+            return None
+        return dofs[1:]
+
+    def project(self, current: View | None, wanted: View) -> tuple[View, list[np.ndarray]]:
+        """The reachable view nearest to `wanted` and the waypoints that fly there (empty: stay where it is)."""
+        reference = current if current is not None else wanted
+        for blend in RING_BLENDS if current is not None else (1.0,):
+            height = reference.height + (wanted.height - reference.height) * blend
+            distance = reference.distance + (wanted.distance - reference.distance) * blend
+            for azimuth in self._azimuths(wanted.azimuth, reference.azimuth):
+                view = View(azimuth, height, distance)
+                if current is not None and self.same(view, current):
+                    return current, []
+                waypoints = self.path(current, view)
+                if waypoints is not None:
+                    return view, waypoints
+        if current is None:
+            raise UserError(f"plant {self.plant.id}: no view of it within the ranges is reachable")
+        return current, []  # not reached: the current view lies on the last ring searched
+
+    @staticmethod
+    def _azimuths(wanted: float, current: float) -> list[float]:
+        """Azimuths on a ring, nearest to `wanted` first; at equal distance, nearest to `current` first."""
+        steps = round(math.pi / SEARCH_STEP)
+        candidates = [wrap(wanted + k * SEARCH_STEP) for k in range(-steps + 1, steps + 1)]
+        candidates.append(current)  # the current view's ring holds the current view
+        return sorted(candidates, key=lambda a: (round(abs(wrap(a - wanted)), 9), round(abs(wrap(a - current)), 9), a))
+
+    @staticmethod
+    def same(a: View, b: View) -> bool:
+        """Views within SAME_VIEW of each other (the camera less than that apart): the robot stays where it is."""
+        return (abs(wrap(a.azimuth - b.azimuth)) * max(a.distance, b.distance) < SAME_VIEW
+                and abs(a.height - b.height) < SAME_VIEW and abs(a.distance - b.distance) < SAME_VIEW)
+
+
+class PepperScanEnv(gymnasium.Env):
+    """Scan one pepper plant from viewpoints an agent chooses (module docstring: spaces, projection, reward)."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 2}
+
+    def __init__(self, config: Config | None = None, backend: str | None = "raster", max_views: int = 8,
+                 time_cost: float = 0.05, max_flight_time: float | None = None, render_mode: str | None = None,
+                 run_dir: Path | str | None = None) -> None:
+        """`config`: the greenhouse, robot, camera, detector and counting (default: the demo preset); `backend`:
+        the renderer (None keeps the config's); `run_dir`: where each scene's files go (default a temporary
+        directory that `close()` removes)."""
+        config = config if config is not None else load_config("demo")
+        if backend is not None:
+            config = config.model_copy(update={"renderer": config.renderer.model_copy(update={"backend": backend})})
+        if max_views < 1:
+            raise UserError(f"max_views: {max_views} (at least 1)")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise UserError(f"render_mode {render_mode!r} (choose from: rgb_array)")
+        self.config, self.max_views, self.time_cost = config, max_views, float(time_cost)
+        self.max_flight_time, self.render_mode = max_flight_time, render_mode
+        self._owned = run_dir is None
+        self.run_dir = Path(tempfile.mkdtemp(prefix="renderloop-gym-")) if run_dir is None else Path(run_dir)
+        # an environment never closed still leaves no temporary directory behind once it is collected (or at exit)
+        self._remove = weakref.finalize(self, shutil.rmtree, self.run_dir, True) if self._owned else None
+        self._scenes: OrderedDict[int, Path] = OrderedDict()
+
+        height, width = config.camera.height, config.camera.width
+        length, room_width, room_height = config.greenhouse.size
+        pose_low = np.array([-length / 2, -room_width / 2, 0.0, -1, -1, -1, -1], np.float32) - MARGIN
+        pose_high = np.array([length / 2, room_width / 2, room_height, 1, 1, 1, 1], np.float32) + MARGIN
+        self.observation_space = spaces.Dict({
+            "rgb": spaces.Box(0, 255, (height, width, 3), np.uint8),
+            "depth": spaces.Box(np.float32(0.0), np.float32(MAX_DEPTH), (height, width), np.float32),  # as PNG holds it
+            "camera_pose": spaces.Box(pose_low, pose_high),
+            "counter": spaces.Box(np.float32(0.0), np.inf, (4,), np.float32),
+        })
+        self.action_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
+
+        self.perception = OnlinePerception(config, None)  # the detector, built once; each episode gives it a counter
+        self.sim: Simulation | None = None
+        self.camera: FrameWorker | None = None
+        self._camera_seed: int | None = None
+        self._frame: Frame | None = None
+        self._closed = False
+
+    # Episodes ---------------------------------------------------------------------------------------------------------
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
+        if self._closed:
+            raise UserError("PepperScanEnv: the environment is closed")
+        super().reset(seed=seed)
+        options = options or {}
+        scene_seed = int(self.np_random.integers(SCENE_SEEDS))
+        pick, side = float(self.np_random.random()), int(self.np_random.integers(2))
+        scene_seed = int(options.get("scene_seed", scene_seed))
+        config = self.config.model_copy(update={"seed": scene_seed})
+        if self.sim is not None:
+            self.sim.close()
+        self.sim = Simulation(config, self._scene_dir(config), hold=MAX_SETTLE + (self.max_views + 1) * STAY)
+        scene = self.sim.scene
+        bearing = [p for p in scene.plants if p.bearing] or list(scene.plants)
+        if "plant" in options:
+            if not 0 <= int(options["plant"]) < len(scene.plants):
+                raise UserError(f"options: plant {options['plant']} (the scene has {len(scene.plants)} plants)")
+            self.plant = scene.plant(int(options["plant"]))
+        else:
+            self.plant = bearing[min(int(pick * len(bearing)), len(bearing) - 1)]
+        if self._camera_seed != scene_seed:  # a renderer holds one scene: the same scene keeps it
+            if self.camera is not None:
+                self.camera.close()
+            self.camera = FrameWorker(config, scene, None, config.renderer.backend)
+            self._camera_seed = scene_seed
+        self.perception.counter = OnlineCounter(scene, config.counting, scene_seed)
+        self.perception.frames = []
+        self.projector = Projector(config, scene, self.plant, self.sim.run_dir / names.WORLD)
+        peppers = scene.peppers_of(self.plant.id)
+        self.truth = (len(peppers), sum(p.ripe for p in peppers))
+
+        wanted = View(0.0 if side == 0 else math.pi, 0.0, sum(DISTANCE_RANGE) / 2)
+        self.view, waypoints = self.projector.project(None, wanted)
+        start = waypoints[-1]
+        self.sim.follow(Reference(np.array([0.0, 1.0 / self.sim.rate_hz]), np.array([start, start]), np.zeros((2, 7)),
+                                  np.zeros((2, 7))))
+        self.views, self.flight_time, self.confirmed = 0, 0.0, (0, 0)
+        observation = self._look()
+        return observation, self._info(wanted, start, 0.0)
+
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        if self.sim is None or self._frame is None:
+            raise UserError("PepperScanEnv: call reset() before step()")
+        wanted = action_to_view(action)
+        before = self.sim.t
+        view, waypoints = self.projector.project(self.view, wanted)
+        try:
+            end = self.sim.replan(np.array(waypoints)) if waypoints else None
+        except UserError:  # TOPP-RA found no parameterisation: the robot stays where it is
+            end = None
+        if end is None:
+            self._hover_until(before + STAY)
+        else:
+            self.view = view
+            self._hover_until(end)
+            self._settle(waypoints[-1])
+        dofs = self.sim.reference[0].copy()
+        step_time = self.sim.t - before
+        self.flight_time += step_time
+        self.views += 1
+        confirmed_before = self.confirmed[0]
+        observation = self._look()
+        reward = float(self.confirmed[0] - confirmed_before - self.time_cost * step_time)
+        terminated = self.views >= self.max_views
+        truncated = not terminated and self.max_flight_time is not None and self.flight_time >= self.max_flight_time
+        return observation, reward, terminated, truncated, self._info(wanted, dofs, step_time)
+
+    def _hover_until(self, t: float) -> None:
+        """Fly until `t`, within the plan and the hover after it (sized for a whole episode of views)."""
+        while self.sim.t < t - 1e-9 and not self.sim.finished:
+            self.sim.step()
+
+    def _settle(self, dofs: np.ndarray) -> None:
+        """After the planned motion, hover on until the camera is where it was sent (or MAX_SETTLE has passed)."""
+        planned = dofs_to_camera_pose(dofs, self.config.robot.arm)[:3, 3]
+        deadline = self.sim.t + MAX_SETTLE
+        while (self.sim.t < deadline - 1e-9 and not self.sim.finished
+               and np.linalg.norm(self.sim.state.camera_pose[:3, 3] - planned) > SETTLE_TOLERANCE):
+            self.sim.step()
+
+    def _look(self) -> dict[str, np.ndarray]:
+        """One frame where the camera is now, through perception into the count; the observation."""
+        now = self.sim.state.camera_pose
+        position, rotation = as_stored(now[:3, 3], now[:3, :3])  # rounded as groundtruth.txt holds poses
+        pose = homogeneous(rotation, position)
+        index = len(self.perception.frames)
+        _, files, _ = self.camera.render_pose(index, pose)
+        self._frame = Frame(index, self.sim.t, pose, files)
+        self.perception.take(self._frame)
+        fruit = [f for f in self.perception.counter.counts().fruit
+                 if f.plant == self.plant.id and f.support >= self.config.counting.min_views]
+        self.confirmed = (len(fruit), sum(f.label == "ripe" for f in fruit))
+        counter = np.array([*self.confirmed, index + 1, self.flight_time], dtype=np.float32)
+        return {"rgb": self._frame.rgb.copy(), "depth": self._frame.depth.astype(np.float32),
+                "camera_pose": pose_vector(pose), "counter": counter}
+
+    def _info(self, wanted: View, dofs: np.ndarray, step_time: float) -> dict[str, Any]:
+        return {
+            "plant": self.plant.id,
+            "scene_seed": self.sim.config.seed,
+            "true_fruit": self.truth[0],
+            "true_ripe": self.truth[1],
+            "confirmed": self.confirmed[0],
+            "confirmed_ripe": self.confirmed[1],
+            "requested_view": wanted.array(),
+            "view": self.view.array(),
+            "projected": wanted != self.view,
+            "dofs": np.array(dofs, dtype=np.float64),
+            "flight_time": float(step_time),
+        }
+
+    def _scene_dir(self, config: Config) -> Path:
+        """The directory of this scene's files: made by the Simulation unless it is there; the oldest go first."""
+        seed = config.seed
+        directory = self.run_dir / f"scene-{seed}"
+        self._scenes.pop(seed, None)
+        self._scenes[seed] = directory
+        while self._owned and len(self._scenes) > SCENES_KEPT:
+            _, old = self._scenes.popitem(last=False)
+            shutil.rmtree(old, ignore_errors=True)
+        return directory
+
+    # Output -----------------------------------------------------------------------------------------------------------
+
+    def render(self) -> np.ndarray | None:
+        """The last frame's RGB (render_mode "rgb_array"); None before the first reset or without a render mode."""
+        if self.render_mode != "rgb_array" or self._frame is None:
+            return None
+        return self._frame.rgb.copy()
+
+    def close(self) -> None:
+        """Closes the simulation and the renderer; removes the temporary directory (a `run_dir` given is kept)."""
+        if self._closed:
+            return
+        self._closed = True
+        if self.sim is not None:
+            self.sim.close()
+            self.sim = None
+        if self.camera is not None:
+            self.camera.close()
+            self.camera = None
+        if self._remove is not None:
+            self._remove()

@@ -1,0 +1,74 @@
+"""The colour-sensor model: each effect does what a real camera does, zero settings change nothing, and a run with
+the sensor on renders rgb_sensor/ beside rgb/ and detects on what the camera delivers."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from renderloop.config import SensorConfig
+from renderloop.perception.stage import run_detect
+from renderloop.render.sensor import linear_to_srgb, metered, sensor_rgb, srgb_to_linear
+from renderloop.render.stage import run_render
+from renderloop.rundir import files, names
+
+IDEAL = SensorConfig(enabled=True, exposure_target=(0.18, 0.18), gain=(1.0, 1.0), white_balance_error=(0.0, 0.0),
+                     vignetting=(0.0, 0.0), defocus=(0.0, 0.0), shot_noise=(0.0, 0.0), read_noise=(0.0, 0.0),
+                     sharpen=(0.0, 0.0), jpeg_quality=(100.0, 100.0))
+
+
+def _flat(linear: float, shape=(60, 80)) -> np.ndarray:
+    return np.full((*shape, 3), linear_to_srgb(np.array(linear))[()], dtype=np.uint8)
+
+
+def _depth(shape=(60, 80)) -> np.ndarray:
+    return np.full(shape, 0.8, dtype=np.float32)
+
+
+def test_a_sensor_with_every_effect_at_zero_delivers_the_ideal_frame():
+    rgb = (np.random.default_rng(0).random((60, 80, 3)) * 255).astype(np.uint8)
+    assert np.array_equal(sensor_rgb(rgb, _depth(), IDEAL, np.random.default_rng(1)), rgb)
+
+
+def test_auto_exposure_brings_a_dark_frame_up_to_its_target_within_its_gain():
+    dark = _flat(0.02)
+    exposed = sensor_rgb(dark, _depth(), IDEAL.model_copy(update={"gain": (0.5, 16.0)}), np.random.default_rng(0))
+    assert abs(metered(srgb_to_linear(exposed)) - 0.18) < 0.01
+    capped = sensor_rgb(dark, _depth(), IDEAL.model_copy(update={"gain": (0.5, 2.0)}), np.random.default_rng(0))
+    assert metered(srgb_to_linear(capped)) < 0.05  # the gain it may not exceed leaves it dark
+
+
+def test_the_gain_makes_dark_regions_noisier_than_bright_ones():
+    noisy = IDEAL.model_copy(update={"gain": (0.5, 16.0), "shot_noise": (0.002, 0.002), "read_noise": (0.002, 0.002)})
+    dark = srgb_to_linear(sensor_rgb(_flat(0.015), _depth(), noisy, np.random.default_rng(0)))
+    bright = srgb_to_linear(sensor_rgb(_flat(0.18), _depth(), noisy, np.random.default_rng(0)))
+    assert abs(dark.mean() - bright.mean()) < 0.02  # both exposed to the same level
+    assert dark.std() > 2 * bright.std()
+
+
+def test_vignetting_darkens_the_corners_and_the_draws_repeat_with_the_seed():
+    vignetted = IDEAL.model_copy(update={"vignetting": (0.3, 0.3)})
+    out = srgb_to_linear(sensor_rgb(_flat(0.18), _depth(), vignetted, np.random.default_rng(0)))
+    assert out[0, 0].mean() < 0.8 * out[30, 40].mean()
+    settings = SensorConfig(enabled=True)
+    rgb = (np.random.default_rng(3).random((60, 80, 3)) * 255).astype(np.uint8)
+    one, two = (sensor_rgb(rgb, _depth(), settings, np.random.default_rng(9)) for _ in range(2))
+    assert np.array_equal(one, two) and not np.array_equal(one, rgb)
+
+
+def test_a_run_with_the_sensor_on_renders_rgb_sensor_and_detects_on_it(complete_run: Path, tmp_path: Path):
+    run = tmp_path / "run"
+    shutil.copytree(complete_run, run)
+    config = files.read_config(run)
+    config = config.model_copy(update={"camera": config.camera.model_copy(update={"sensor": SensorConfig(enabled=True)})})
+    files.write_config(run, config)
+    assert run_render(run, config)  # another camera: the render starts over
+    rendered = sorted(p.name for p in (run / names.RGB_SENSOR).iterdir())
+    assert rendered == sorted(p.name for p in (run / names.RGB).iterdir()) and (run / names.frames_index(names.RGB_SENSOR)).is_file()
+    assert (run / names.frame_file(names.RGB, 0)).read_bytes() == (complete_run / names.frame_file(names.RGB, 0)).read_bytes()
+    assert (run / names.frame_file(names.RGB_SENSOR, 0)).read_bytes() != (run / names.frame_file(names.RGB, 0)).read_bytes()
+    run_detect(run, config, force=True)
+    detections = files.read_detections(run, len(files.read_poses(run)[0]))
+    assert all(frame.image.startswith(f"{names.RGB_SENSOR}/") for frame in detections.frames)
