@@ -15,7 +15,8 @@ from gymnasium.utils.env_checker import check_env
 
 import renderloop  # noqa: F401  (registers the environment)
 from renderloop.config import Config, load_config
-from renderloop.loop.gym_env import ENV_ID, PepperScanEnv, action_to_view
+from renderloop.loop.gym_env import ENV_ID, PepperScanEnv
+from renderloop.loop.viewpoints import action_to_view
 from renderloop.robot.kinematics import dofs_to_camera_pose
 
 SEED = 3
