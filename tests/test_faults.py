@@ -26,7 +26,7 @@ from renderloop.rundir.ownership import read_ledger
 FAST = {"renderer": {"backend": "raster"}, "camera": {"rate_hz": 0.25}}
 # Seconds of each stage, and the list of files renderloop wrote (a killed write may leave a name listed whose file
 # never appeared): the files that may differ between two runs.
-VOLATILE = {"timings.json", ".renderloop-files"}
+VOLATILE = {"timings.json", ".renderloop-files", "report.html"}  # the report shows the seconds and the folder's name
 Trigger = Callable[[Path], bool]
 
 

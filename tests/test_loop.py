@@ -146,6 +146,42 @@ def test_one_and_two_cycles_workers_render_the_same_online_frames(workers: int, 
     assert len(single) >= 3 and single == several
 
 
+def test_online_cycles_sensor_frames_blurred_by_the_flown_motion_are_the_batch_renders(tmp_path: Path):
+    """A sensor frame is asked for once its exposure has been flown and blurred over the motion the batch render
+    reads from flight.csv: the online camera's files are the batch render's, byte for byte."""
+    from renderloop.config import load_config
+    from renderloop.render.motion import FlownStates, frames_motion
+    from renderloop.render.stage import run_render
+    from renderloop.sim.stage import camera_frames, write_flight
+
+    data = load_config("demo").model_dump(mode="json")
+    data["camera"].update(width=64, height=48, rate_hz=0.1)
+    data["camera"]["sensor"]["enabled"] = True
+    data["renderer"].update(backend="cycles", samples=1)
+    config = Config.model_validate(data)
+    run_dir = tmp_path / "run"
+    with Simulation(config, run_dir) as sim:
+        sim.follow(sim.scan_trajectory())
+        camera = sim.add_camera()
+        sim.step()
+        assert len(camera) == 1 and not camera.ready(0)  # taken at the first tick, its shutter still open
+        sim.run()
+        online = [frame.files for frame in camera.frames_until(sim.end)]
+        shutters = np.array([camera.shutters[index] for index in range(len(online))])
+        log = sim.log()
+        write_flight(run_dir, config, log, camera_frames(log, sim.end, camera.rate_hz))
+    times, poses = files.read_poses(run_dir)
+    batch = frames_motion(FlownStates.of_flight(files.read_flight(run_dir)), config.robot.arm, times, poses,
+                          config.camera.sensor, config.seed)
+    assert np.array_equal(shutters, batch)  # the poses the shutter opened and closed at, to the bit
+    assert np.linalg.norm(shutters[:, 1, :3, 3] - shutters[:, 0, :3, 3], axis=1).max() > 1e-3  # a frame in motion
+    run_render(run_dir, config, force=True)
+    assert len(online) >= 3 and all(names.RGB_SENSOR in frame for frame in online)
+    for index, frame in enumerate(online):
+        for stream, png in frame.items():
+            assert (run_dir / names.frame_file(stream, index)).read_bytes() == png, (stream, index)
+
+
 def test_a_replan_after_the_hover_starts_from_where_the_robot_rests(flown: Path):
     config = files.read_config(flown)
     with Simulation(config, flown, hold=0.2) as sim:

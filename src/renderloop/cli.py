@@ -277,7 +277,7 @@ def count(
 @app.command()
 def report(run_dir: RunDir, out: Annotated[Path | None, typer.Option(help="HTML file; default: DIR/report.html.")] = None,
            force: Annotated[bool, typer.Option("--force", help="Replace --out if it exists.")] = False) -> None:
-    """Write report.html: one self-contained page of the run (config, scene, flight, frames, detections, counts, times)."""
+    """Write report.html: one self-contained page of the run (yield table, plant cards, the greenhouse in 3D, detector, flight, times)."""
     typer.echo(f"report: wrote {write_report(run_dir, out, force)}")
 
 
@@ -359,10 +359,15 @@ def show_config(
 @app.command()
 def run(out: Out, preset: Preset = "demo", config: ConfigFile = None, seed: Seed = None, force: Force = False,
         online: Annotated[bool, typer.Option("--online", help="Render and detect while flying (mission.online).")] = False) -> None:
-    """Run every stage of the pipeline in order, skipping stages that are already complete."""
+    """Run every stage of the pipeline in order, skipping stages that are already complete; then write report.html."""
+    from renderloop.report.words import run_summary
+
     resolved = load_config(preset, config, seed, online=online or None)
     seconds = run_pipeline(out, resolved, force, Console(stderr=True))
+    page = write_report(out, only_if_stale=True)  # not a stage: a report newer than every file it shows is kept
     typer.echo(f"run: {out} ({sum(seconds.values()):.1f} s)")
+    for line in run_summary(read_counts(out), page):
+        typer.echo(line)
 
 
 def main() -> None:

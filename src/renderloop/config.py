@@ -236,6 +236,9 @@ class SensorConfig(Strict):
     range. Off: the ideal stream only. On: `rgb_sensor/` beside `rgb/`, and perception reads the sensor's frames."""
 
     enabled: bool = Field(False, description="Render the sensor stream rgb_sensor/ beside the ideal rgb/.")
+    exposure_time: Range(0.0, 0.2) = Field(
+        (0.008, 0.025), description="Shutter time, s (a D435's indoor auto exposure): Cycles blurs rgb_sensor/ with the "
+        "camera's flown motion over it (render/motion.py); raster frames are not blurred; 0: no blur.")
     exposure_target: Range(0.01, 1.0) = Field(
         (0.12, 0.22), description="Centre-weighted mean linear luminance auto exposure aims for (0.18: mid grey).")
     gain: Range(0.01, 100.0) = Field((0.5, 16.0), description="Smallest and largest gain auto exposure may set.")
@@ -378,14 +381,15 @@ class RendererConfig(Strict):
 class DetectorConfig(Strict):
     model: Path | None = Field(None, description="ONNX model; null means the one shipped in the package.")
     input_size: Count(64, 2048) = Field(320, description="Side of the square network input, px.")
-    score_threshold: Fraction = Field(0.71, description="Score a detection needs. Fused scores run higher than "
-                                      "one pass's: 0.71 gave at most 5 % false detections on held-out paper runs (README, Perception).")
+    score_threshold: Fraction = Field(0.71, description="Score a detection needs. Fused scores run higher than one "
+                                      "pass's: 0.71 gave at most 5 % false detections on held-out paper runs "
+                                      "(docs/stages/perception.md).")
     windows: tuple[Annotated[str, Field(pattern=f"^{LAYOUT_PATTERN}$")], ...] = Field(
         ("2x2", "3x2"), max_length=64,  # the 8 x 8 possible layouts
         description="Also search the overlapping windows of these columns x rows layouts of each frame, "
         "where small fruit look larger (one network pass a window; perception/tiling.py); []: the whole frame only.")
     mirror: bool = Field(True, description="Also search the frame mirrored left to right, the passes fused: one more "
-                         "network pass, for recall at the same rate of false detections (README, Perception).")
+                         "network pass, for recall at the same rate of false detections (docs/stages/perception.md).")
 
     @model_validator(mode="before")
     @classmethod
@@ -441,7 +445,7 @@ class Config(Strict):
     renderer: RendererConfig = Field(RendererConfig(), description="Rendering of the camera frames.")
     detector: DetectorConfig = Field(DetectorConfig(), description="The pepper detector.")
     counting: CountingConfig = Field(CountingConfig(), description="Yield counting and the harvest plan.")
-    mission: MissionConfig = Field(MissionConfig(), description="How the scan is flown.")
+    mission: MissionConfig = Field(MissionConfig(), description="How the scan is flown (batch stages, or the loop online).")
 
     @model_validator(mode="after")
     def _fits(self) -> Config:

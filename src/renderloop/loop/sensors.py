@@ -6,11 +6,17 @@ loop is byte for byte the frame a batch render of that pose gives. Raster frames
 once in this process; Cycles frames in worker processes (or Ray actors), so the physics keeps
 stepping while they render and waits only when a consumer asks for a frame that is not there yet.
 Results are keyed by frame index, so nothing depends on which worker finished first.
+
+A Cycles frame with the colour sensor on is blurred by the camera's motion while its shutter
+is open (`renderloop.render.motion`), from t - e/2 to t + e/2: the camera keeps the flown state
+of every tick, rounded as flight.csv stores it, and asks for the frame at the first tick at or
+after t + e/2, when the motion it was exposed over has been flown; until then it is not ready.
 """
 
 from __future__ import annotations
 
 import io
+from bisect import bisect_left
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -26,11 +32,13 @@ from renderloop.io.tum import as_stored
 from renderloop.render.executor import (
     BACKENDS,
     FrameWorker,
+    blurs_motion,
     ray_session,
     spawnable_sys_path,
     threads_per_worker,
 )
 from renderloop.render.frames import decode_depth
+from renderloop.render.motion import FlownStates, exposure_poses, exposure_time, stored
 from renderloop.robot.kinematics import homogeneous
 from renderloop.rundir import names
 from renderloop.scene.model import Scene
@@ -83,9 +91,9 @@ def _start_worker(config: Config, scene: Scene, backend: str) -> None:
     _worker = FrameWorker(config, scene, None, backend)
 
 
-def _render_in_worker(index: int, pose: np.ndarray) -> tuple[int, dict[str, bytes], dict[str, float]]:
+def _render_in_worker(index: int, pose: np.ndarray, motion: np.ndarray | None) -> tuple[int, dict[str, bytes], dict[str, float]]:
     assert _worker is not None
-    return _worker.render_pose(index, pose)
+    return _worker.render_pose(index, pose, motion)
 
 
 class _Renderers:
@@ -121,14 +129,14 @@ class _Renderers:
         self.actors = [actor.remote(config, scene, None, backend) for _ in range(max(1, workers))]
         self.ray = ray
 
-    def submit(self, index: int, pose: np.ndarray) -> None:
+    def submit(self, index: int, pose: np.ndarray, motion: np.ndarray | None = None) -> None:
         if hasattr(self, "local"):
-            self.pending[index] = self.local.render_pose(index, pose)
+            self.pending[index] = self.local.render_pose(index, pose, motion)
         elif hasattr(self, "actors"):
-            self.pending[index] = self.actors[index % len(self.actors)].render_pose.remote(index, pose)
+            self.pending[index] = self.actors[index % len(self.actors)].render_pose.remote(index, pose, motion)
         else:
             with spawnable_sys_path():  # a worker process starts on the first submission
-                self.pending[index] = self.pool.submit(_render_in_worker, index, pose)
+                self.pending[index] = self.pool.submit(_render_in_worker, index, pose, motion)
 
     def ready(self, index: int) -> bool:
         job = self.pending[index]
@@ -161,6 +169,7 @@ class Camera:
             raise UserError(f"camera rate {rate_hz} Hz: the control loop at {control_rate_hz} Hz cannot serve it "
                             f"(0 < rate <= {control_rate_hz})")
         self.config, self.rate_hz, self.backend = config, rate_hz, backend
+        self.blurs = blurs_motion(config, backend)
         self.renderers = _Renderers(config, scene, backend, workers, executor, address)
         self.restart()
 
@@ -169,10 +178,18 @@ class Camera:
         self.timestamps: list[float] = []
         self.poses: list[np.ndarray] = []
         self._frames: dict[int, Frame] = {}
+        self._flown_t: list[float] = []  # the flown state of every tick, for the motion during exposures
+        self._flown: list[list[float]] = []
+        self._exposing: dict[int, tuple[float, float]] = {}  # frames whose shutter is still open: (t, exposure)
+        self.shutters: dict[int, np.ndarray] = {}  # a blurred frame's poses at its shutter's opening and closing
         self.renderers.pending.clear()
 
     def observe(self, now: float, snapshot: Snapshot, end: float) -> None:
         """Called at every control tick: ask for a frame when one of the camera's instants has come."""
+        if self.blurs:  # as flight.csv will hold it, so the motion is the batch render's to the bit
+            row = stored([now, *snapshot.position, *snapshot.quaternion, *snapshot.joints])
+            self._flown_t.append(row[0])
+            self._flown.append(row)
         due = len(self.timestamps) / self.rate_hz
         if due <= end + 1e-9 and now >= due - 1e-9:
             index = len(self.timestamps)
@@ -180,20 +197,37 @@ class Camera:
             pose = homogeneous(rotation, position)  # as groundtruth.txt will hold it, so batch renders see the same pose
             self.timestamps.append(now)
             self.poses.append(pose)
-            self.renderers.submit(index, pose)
+            if self.blurs:
+                self._exposing[index] = (stored([now])[0], exposure_time(self.config.camera.sensor, self.config.seed, index))
+            else:
+                self.renderers.submit(index, pose)
+        for index, (t, exposure) in list(self._exposing.items()):
+            if self._flown_t[-1] >= t + exposure / 2:  # the tick the batch render interpolates the shutter's close to
+                self._submit_exposed(index)
+
+    def _submit_exposed(self, index: int) -> None:
+        """Ask for a frame whose exposure has been flown (or, asked for before, the flight so far: the camera holds
+        its last state, as a batch render of a flight that ended here would)."""
+        t, exposure = self._exposing.pop(index)
+        first = max(bisect_left(self._flown_t, t - exposure / 2) - 1, 0)  # the ticks the batch render interpolates
+        states = FlownStates.of_rows(self._flown[first:])
+        self.shutters[index] = exposure_poses(states, self.config.robot.arm, t, self.poses[index], exposure)
+        self.renderers.submit(index, self.poses[index], self.shutters[index])
 
     def __len__(self) -> int:
         """Frames asked for so far."""
         return len(self.timestamps)
 
     def ready(self, index: int) -> bool:
-        return index in self._frames or self.renderers.ready(index)
+        return index in self._frames or (index not in self._exposing and self.renderers.ready(index))
 
     def frame(self, index: int) -> Frame:
         """Frame `index`, waiting for its render if it is not there yet."""
         if index not in self._frames:
             if not 0 <= index < len(self.timestamps):
                 raise UserError(f"camera frame {index}: only {len(self.timestamps)} frames were asked for")
+            if index in self._exposing:
+                self._submit_exposed(index)
             self._frames[index] = Frame(index, self.timestamps[index], self.poses[index], self.renderers.result(index))
         return self._frames[index]
 

@@ -1,13 +1,13 @@
 """`renderloop threshold RUN_DIR...`: the detector's score threshold, chosen on rendered runs it never trained on.
 
 The rule the shipped default was chosen by: the lowest score at which at most `max_false`
-of the scored detections are false (README, Perception). Fused scores run higher the more
+of the scored detections are false (docs/stages/perception.md). Fused scores run higher the more
 passes search a frame, so a new model, other windows or the mirror turned off each need the
 threshold chosen again. Every frame is searched once, keeping its fused boxes down to
 PASS_FLOOR; a higher threshold only drops boxes, so each candidate is scored on exactly the
 detections `renderloop detect --threshold t` would give, against the masks. The rule serves
 the detection goal; counting can want fewer false boxes than it allows (on the demo's
-frames it chooses 0.21, where counts are worse than at 0.71: README, Perception).
+frames it chooses 0.21, where counts are worse than at 0.71: docs/stages/perception.md).
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ A layout whose windows the network input would enlarge more than MAX_ENLARGEMENT
 either side is not searched: it shows no pixels the frame does not, only blur. On 640x480
 frames the 3x2 windows (235x264, enlarged 1.36 times) found more fruit together with the
 2x2 ones than the 2x2 alone at the same rate of false detections, the 3x3 windows (176 px
-high, 1.82 times) fewer (README, Perception); the demo's 320x240 frames get no windows.
+high, 1.82 times) fewer (docs/stages/perception.md); the demo's 320x240 frames get no windows.
 """
 
 from __future__ import annotations

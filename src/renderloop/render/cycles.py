@@ -14,6 +14,9 @@ applying it in numpy to the EXR's float pixels matches the PNG Blender itself sa
 (`Image.save_render`, dither off) to within one 8-bit level (28 of 57 600 values off
 by one in a 160x120 greenhouse frame: OCIO's own rounding), and saves writing a file.
 
+`render_blurred()` path traces the colour sensor's frame again with motion blur, the camera
+keyed at the shutter's opening and closing (render/motion.py); the ideal passes stay sharp.
+
 `bpy` is a process-wide singleton: building a renderer resets it, so constructing a
 second renderer retires the first (its `render()` then raises).
 """
@@ -185,6 +188,7 @@ class CyclesRenderer:
         s.render.pixel_aspect_x = s.render.pixel_aspect_y = 1.0
         s.render.film_transparent = False
         s.render.dither_intensity = 0.0
+        s.render.motion_blur_position, s.render.motion_blur_shutter = "START", 1.0  # used by render_blurred() only
         s.render.use_compositing = s.render.use_sequencer = False
         s.display_settings.display_device = "sRGB"
         s.view_settings.view_transform = VIEW_TRANSFORM
@@ -239,18 +243,10 @@ class CyclesRenderer:
 
     def render(self, pose: np.ndarray) -> RenderedFrame:
         """Render the optical-frame pose T_world_optical (4x4)."""
-        if self._closed:
-            raise RuntimeError("CyclesRenderer is closed (or another renderer replaced its Blender scene)")
-        pose = np.asarray(pose, dtype=float)
-        if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
-            raise ValueError("pose must be a finite 4x4 transform")
-        if not np.allclose(pose[:3, :3] @ pose[:3, :3].T, np.eye(3), atol=1e-6):
-            raise ValueError("pose rotation is not orthonormal")
+        pose = self._checked(pose)
         start = time.perf_counter()
         self._camera.matrix_world = Matrix(to_gl_camera(pose).tolist())
-        self._exr.unlink(missing_ok=True)
-        with _quiet_stdout():
-            bpy.ops.render.render(write_still=True)
+        self._render_exr()
         rendered = time.perf_counter()
         frame = self._read()
         frame.timings["render_call"] = rendered - start
@@ -258,7 +254,55 @@ class CyclesRenderer:
         frame.timings["total"] = time.perf_counter() - start
         return frame
 
-    def _read(self) -> RenderedFrame:
+    def render_blurred(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """The colour (sRGB, uint8) of a camera moving from pose `start` to pose `end` while the shutter is open.
+        Combined only: Cycles writes Depth and Object Index from a pixel's first sample, at a random instant of the
+        shutter, so under blur their edges become dithered bands, neither a depth or mask nor the colour's edge."""
+        start, end = self._checked(start), self._checked(end)
+        s, camera, layer = self._scene, self._camera, self._scene.view_layers[0]
+        # Keys at frames 1 and 2, linear (Blender's default eases in and out), the shutter open over exactly them.
+        # Euler angles, the end's taken next to the start's so none wraps: the rotation mode render() decomposes
+        # matrix_world into stays, or its next frame would differ in the last bit.
+        gl_start, gl_end = (Matrix(to_gl_camera(pose).tolist()) for pose in (start, end))
+        euler = gl_start.to_euler("XYZ")
+        keyed = {"location": (gl_start.to_translation(), gl_end.to_translation()),
+                 "rotation_euler": (euler, gl_end.to_euler("XYZ", euler))}
+        action = bpy.data.actions.new("shutter")
+        camera.animation_data_create().action = action
+        try:
+            for path, (opening, closing) in keyed.items():
+                for axis in range(3):
+                    keys = action.fcurve_ensure_for_datablock(camera, path, index=axis).keyframe_points
+                    for frame, value in ((1, opening[axis]), (2, closing[axis])):
+                        keys.insert(frame, value).interpolation = "LINEAR"
+            s.frame_set(1)
+            s.render.use_motion_blur = True  # the shutter: from frame 1 to frame 2 (_configure)
+            layer.use_pass_z = layer.use_pass_object_index = False  # not read: see above
+            self._render_exr()
+            return srgb_oetf_u8(self._channels([_PASSES["rgb"]])[0][_PASSES["rgb"]][..., :3])
+        finally:  # back to the still camera render() expects
+            camera.animation_data_clear()
+            bpy.data.actions.remove(action)
+            s.render.use_motion_blur = False
+            layer.use_pass_z = layer.use_pass_object_index = True
+
+    def _checked(self, pose: np.ndarray) -> np.ndarray:
+        if self._closed:
+            raise RuntimeError("CyclesRenderer is closed (or another renderer replaced its Blender scene)")
+        pose = np.asarray(pose, dtype=float)
+        if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
+            raise ValueError("pose must be a finite 4x4 transform")
+        if not np.allclose(pose[:3, :3] @ pose[:3, :3].T, np.eye(3), atol=1e-6):
+            raise ValueError("pose rotation is not orthonormal")
+        return pose
+
+    def _render_exr(self) -> None:
+        self._exr.unlink(missing_ok=True)
+        with _quiet_stdout():
+            bpy.ops.render.render(write_still=True)
+
+    def _channels(self, needed: list[str]) -> tuple[dict[str, np.ndarray], dict]:
+        """The EXR's channels by name, and its header."""
         if not self._exr.exists():
             raise RuntimeError(f"Cycles wrote no image to {self._exr}")
         channels: dict[str, np.ndarray] = {}
@@ -267,9 +311,13 @@ class CyclesRenderer:
             for part in exr.parts:
                 for name, channel in part.channels.items():
                     channels[name] = np.array(channel.pixels)  # copy out of the file's buffers
-        missing = [name for name in _PASSES.values() if name not in channels]
+        missing = [name for name in needed if name not in channels]
         if missing:
             raise RuntimeError(f"Cycles EXR lacks passes {missing} (has {sorted(channels)})")
+        return channels, header
+
+    def _read(self) -> RenderedFrame:
+        channels, header = self._channels(list(_PASSES.values()))
         z = channels[_PASSES["z"]]
         near, far = self.clip
         depth = np.where(np.isfinite(z) & (z >= near) & (z <= far), z, 0.0).astype(np.float32)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import socket
 import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -46,15 +47,25 @@ def make_renderer(backend: str, scene: Scene, config: Config, intrinsics: Intrin
     raise UserError(f"unknown backend {backend!r} (choose from: {', '.join(BACKENDS)})")
 
 
+def blurs_motion(config: Config, backend: str) -> bool:
+    """Whether frames need the camera's motion during the exposure: the colour sensor's stream, rendered by Cycles.
+    The raster backend renders one instant (MuJoCo's OpenGL has no shutter), so its rgb_sensor/ has no motion blur."""
+    return config.camera.sensor.enabled and config.camera.sensor.exposure_time[1] > 0 and backend == "cycles"
+
+
 class FrameWorker:
     """Renders frames of one run; everything it needs travels with it (picklable)."""
 
-    def __init__(self, config: Config, scene: Scene, poses: np.ndarray | None, backend: str):
-        self.config, self.poses = config, poses  # poses: a batch's, or None for frames asked for one by one
+    def __init__(self, config: Config, scene: Scene, poses: np.ndarray | None, backend: str,
+                 motion: np.ndarray | None = None):
+        # poses (N, 4, 4), motion (N, 2, 4, 4): a batch's, or None for frames asked for one by one
+        self.config, self.poses, self.motion = config, poses, motion
         self.renderer = make_renderer(backend, scene, config, Intrinsics.from_config(config.camera))
 
-    def render_pose(self, index: int, pose: np.ndarray) -> tuple[int, dict[str, bytes], dict[str, float]]:
-        """Frame `index` of the run, seen from `pose` (T_world_optical)."""
+    def render_pose(self, index: int, pose: np.ndarray,
+                    motion: np.ndarray | None = None) -> tuple[int, dict[str, bytes], dict[str, float]]:
+        """Frame `index`, seen from `pose` (T_world_optical); `motion`: the poses at the shutter's opening and closing
+        (render/motion.py), which the colour sensor's frame is blurred between (Cycles only; None: a still camera)."""
         frame = self.renderer.render(pose)
         config, depth, rgb = self.config, None, None
         # each sensor seeded per frame, so a frame does not depend on which worker drew it
@@ -62,12 +73,19 @@ class FrameWorker:
             rng = np.random.default_rng(np.random.SeedSequence([config.seed, DEPTH_NOISE_STREAM, index]))
             depth = sensor_depth(frame.depth, config.renderer.depth_noise, config.camera.clip, rng)
         if config.camera.sensor.enabled:
+            colour = frame.rgb
+            if motion is not None and hasattr(self.renderer, "render_blurred"):
+                start = time.perf_counter()  # a second path-traced render: the ideal frame stays unblurred
+                colour = self.renderer.render_blurred(motion[0], motion[1])
+                frame.timings["motion_blur"] = time.perf_counter() - start
             rng = np.random.default_rng(np.random.SeedSequence([config.seed, COLOUR_SENSOR_STREAM, index]))
-            rgb = sensor_rgb(frame.rgb, frame.depth, config.camera.sensor, rng)
+            # the ideal depth for the lens's defocus: blurred depth is not a depth (CyclesRenderer.render_blurred)
+            rgb = sensor_rgb(colour, frame.depth, config.camera.sensor, rng)
         return index, encode_frame(frame, depth, rgb), frame.timings
 
     def render(self, indices: list[int]) -> Rendered:
-        return [self.render_pose(index, self.poses[index]) for index in indices]
+        motion = self.motion if self.motion is not None else [None] * len(self.poses)
+        return [self.render_pose(index, self.poses[index], motion[index]) for index in indices]
 
     def close(self) -> None:
         self.renderer.close()
@@ -89,10 +107,11 @@ _process_worker: FrameWorker | None = None
 _start_error: Exception | None = None
 
 
-def _start_process_worker(config: Config, scene: Scene, poses: np.ndarray, backend: str) -> None:
+def _start_process_worker(config: Config, scene: Scene, poses: np.ndarray, backend: str,
+                          motion: np.ndarray | None) -> None:
     global _process_worker, _start_error
     try:
-        _process_worker = FrameWorker(config, scene, poses, backend)
+        _process_worker = FrameWorker(config, scene, poses, backend, motion)
     except Exception as error:  # kept for the first task: a failing initializer only tells the driver "BrokenProcessPool"
         _start_error = error
 
@@ -117,9 +136,10 @@ def spawnable_sys_path() -> Iterator[None]:
         sys.path[:] = saved
 
 
-def render_local(config: Config, scene: Scene, poses: np.ndarray, backend: str, indices: list[int], workers: int) -> Iterator[Rendered]:
+def render_local(config: Config, scene: Scene, poses: np.ndarray, backend: str, indices: list[int], workers: int,
+                 motion: np.ndarray | None = None) -> Iterator[Rendered]:
     if workers <= 1:
-        worker = FrameWorker(config, scene, poses, backend)
+        worker = FrameWorker(config, scene, poses, backend, motion)
         try:
             for chunk in _chunks(indices):
                 yield worker.render(chunk)
@@ -129,7 +149,7 @@ def render_local(config: Config, scene: Scene, poses: np.ndarray, backend: str, 
     config = threads_per_worker(config, workers)
     # spawn, not fork: neither Blender nor an OpenGL context survives a fork
     with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_start_process_worker,
-                             initargs=(config, scene, poses, backend)) as pool:
+                             initargs=(config, scene, poses, backend, motion)) as pool:
         with spawnable_sys_path():  # the workers start on the first submissions
             futures = [pool.submit(_render_in_process_worker, chunk) for chunk in _chunks(indices)]
         for future in as_completed(futures):
@@ -172,13 +192,14 @@ def ray_session(workers: int, address: str | None) -> Iterator[None]:
             ray.shutdown()
 
 
-def render_ray(config: Config, scene: Scene, poses: np.ndarray, backend: str, indices: list[int], workers: int, address: str | None) -> Iterator[Rendered]:
+def render_ray(config: Config, scene: Scene, poses: np.ndarray, backend: str, indices: list[int], workers: int, address: str | None,
+               motion: np.ndarray | None = None) -> Iterator[Rendered]:
     import ray
 
     with ray_session(workers, address):
         config = threads_per_worker(config, workers)
         actor = ray.remote(num_cpus=1)(FrameWorker)
-        actors = [actor.remote(config, scene, poses, backend) for _ in range(max(workers, 1))]
+        actors = [actor.remote(config, scene, poses, backend, motion) for _ in range(max(workers, 1))]
         pending, chunks = {}, _chunks(indices)
         for worker in actors:  # one chunk in flight per actor; the next goes to whichever finishes first
             if chunks:

@@ -6,7 +6,9 @@ foliage up, so the background clips white; its auto white balance is off by a fe
 cent; the small sensor adds shot noise (that the gain amplifies, so dark regions are
 noisy) and read noise; the cheap lens darkens the corners (vignetting) and blurs what
 lies far from its fixed focus; the ISP sharpens, and the stream is often JPEG-compressed.
-`sensor_rgb` applies these in that order to the ideal sRGB frame, in linear light.
+`sensor_rgb` applies these in that order to the ideal sRGB frame, in linear light; with
+Cycles that frame is first rendered again blurred by the camera's motion over the exposure
+(`render/motion.py`, `CyclesRenderer.render_blurred`), the raster backend has no blur.
 
 Every setting is a range (`renderloop.config.SensorConfig`) and each frame draws its own
 values from a generator seeded by the run's seed and the frame index, so a frame is the

@@ -19,8 +19,9 @@ from renderloop.config import BouncesConfig, Config, SensorConfig
 from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
 from renderloop.render.contact_sheet import draw_contact_sheet
-from renderloop.render.executor import BACKENDS, render_local, render_ray
+from renderloop.render.executor import BACKENDS, blurs_motion, render_local, render_ray
 from renderloop.render.frames import frame_done, streams_of, write_frame
+from renderloop.render.motion import FlownStates, frames_motion
 from renderloop.rundir import files, names, ownership
 from renderloop.rundir.models import RenderRecord
 from renderloop.rundir.stage import Job, Stage
@@ -28,7 +29,7 @@ from renderloop.rundir.stage import Job, Stage
 NEEDS = (names.CONFIG, names.SCENE, names.POSES)
 # Bytes a frame may take on disk at most per pixel: 8-bit RGB, then 16-bit depth, mask and sensor depth, as if
 # PNG compressed nothing. The estimate is an upper bound, so a run it admits never fills the disk halfway.
-BYTES_PER_PIXEL = {names.RGB: 3, names.DEPTH: 2, names.MASKS: 2, names.DEPTH_SENSOR: 2}
+BYTES_PER_PIXEL = {names.RGB: 3, names.DEPTH: 2, names.MASKS: 2, names.DEPTH_SENSOR: 2, names.RGB_SENSOR: 3}
 
 
 def _sha256(data: bytes) -> str:
@@ -51,12 +52,19 @@ def render_record(run_dir: Path, config: Config, poses: np.ndarray) -> RenderRec
 
 def _recorded(run_dir: Path) -> RenderRecord | None:
     recorded = files.read_render_record(run_dir)
-    if recorded is not None and "bounces" not in recorded.renderer:
+    if recorded is None:
+        return None
+    if "bounces" not in recorded.renderer:
         # a record from before the bounces were configurable: its frames had today's defaults, then hard-coded
         renderer = {"bounces": BouncesConfig().model_dump(mode="json"), **recorded.renderer}
         recorded = recorded.model_copy(update={"renderer": renderer})
-    if recorded is not None and "sensor" not in recorded.camera:  # from before the colour sensor: it was off
+    if "sensor" not in recorded.camera:  # from before the colour sensor: it was off
         recorded = recorded.model_copy(update={"camera": {**recorded.camera, "sensor": SensorConfig().model_dump(mode="json")}})
+    sensor = recorded.camera["sensor"]
+    if "exposure_time" not in sensor and not (sensor.get("enabled") and recorded.backend == "cycles"):
+        # from before motion blur, which would not have changed its frames (sensor off, or raster): today's default
+        sensor = {**sensor, "exposure_time": list(SensorConfig().exposure_time)}
+        recorded = recorded.model_copy(update={"camera": {**recorded.camera, "sensor": sensor}})
     return recorded
 
 
@@ -66,8 +74,7 @@ def _same_record(run_dir: Path, config: Config) -> bool:
 
 def check_disk(run_dir: Path, config: Config, frames: int) -> None:
     """Refuse, before the first frame, a render whose frames cannot fit on the disk."""
-    streams = [names.RGB, names.DEPTH, names.MASKS] + ([names.DEPTH_SENSOR] if config.renderer.depth_noise.enabled else [])
-    need = frames * config.camera.width * config.camera.height * sum(BYTES_PER_PIXEL[s] for s in streams)
+    need = frames * config.camera.width * config.camera.height * sum(BYTES_PER_PIXEL[s] for s in streams_of(config))
     free = shutil.disk_usage(run_dir).free
     if need > free:
         raise UserError(f"{run_dir}: {frames} frames of {config.camera.width}x{config.camera.height} need up to "
@@ -92,10 +99,14 @@ def _render(run_dir: Path, config: Config, job: Job) -> None:
     if todo:
         check_disk(run_dir, config, len(todo))
         scene = files.read_scene(run_dir)
+        motion = None
+        if blurs_motion(config, backend):  # the camera's motion while each frame's shutter is open, as it was flown
+            states = FlownStates.of_flight(files.read_flight(run_dir))
+            motion = frames_motion(states, config.robot.arm, times, poses, config.camera.sensor, config.seed)
         if job.executor == "ray":
-            batches = render_ray(config, scene, poses, backend, todo, job.workers, job.address)
+            batches = render_ray(config, scene, poses, backend, todo, job.workers, job.address, motion)
         else:
-            batches = render_local(config, scene, poses, backend, todo, job.workers)
+            batches = render_local(config, scene, poses, backend, todo, job.workers, motion)
         for batch in batches:
             for index, frame_files, _ in batch:
                 write_frame(run_dir, index, frame_files)

@@ -159,8 +159,10 @@ def write_config(run_dir: Path, config: Config) -> None:
 
 
 def _what_it_computes(config: Config) -> Config:
-    """The config less the renderer's thread count and device, which decide how fast frames come, not what they hold."""
-    return config.model_copy(update={"renderer": config.renderer.model_copy(update={"threads": 0, "device": "cpu"})})
+    """The config less what decides how fast files come, not what they hold: the renderer's thread count and device,
+    and whether the scan is flown online (the online loop writes the batch stages' files)."""
+    return config.model_copy(update={"renderer": config.renderer.model_copy(update={"threads": 0, "device": "cpu"}),
+                                     "mission": config.mission.model_copy(update={"online": False})})
 
 
 def check_config(run_dir: Path, config: Config) -> None:

@@ -1,0 +1,183 @@
+"""report.html in a real browser, and the summary `renderloop run` ends with.
+
+The page is opened from a file:// URL in Debian's chromium through Playwright (never a
+browser Playwright downloads) with every request but the page itself refused, so a
+page that reached for the network, threw a JavaScript error or drew no 3D view fails
+here. Only a machine without chromium skips (scripts/setup.sh installs it).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from PIL import Image
+
+from conftest import cli
+from renderloop.report.html import build_report, write_report
+from renderloop.report.words import signed_pct
+
+CHROMIUM = Path("/usr/bin/chromium")
+LAUNCH_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+               "--no-first-run"]
+FAST = {"renderer": {"backend": "raster"}, "camera": {"rate_hz": 0.25}}
+PATH_COLOR = (0x1F, 0x3B, 0x73)  # the flown path in the 3D view (report/view3d.py)
+
+
+def _near(image: Image.Image, color: tuple[int, int, int], tolerance: int = 12) -> int:
+    pixels = np.asarray(image.convert("RGB"), dtype=int)
+    return int((np.abs(pixels - np.array(color)).sum(axis=2) < tolerance).sum())
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if not CHROMIUM.is_file():
+        pytest.skip(f"no chromium at {CHROMIUM}: scripts/setup.sh installs Debian's chromium")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=str(CHROMIUM), args=LAUNCH_ARGS)
+        yield launched
+        launched.close()
+
+
+@pytest.fixture(scope="module")
+def report(complete_run: Path, tmp_path_factory) -> Path:
+    return write_report(complete_run, tmp_path_factory.mktemp("report") / "report.html")
+
+
+@dataclass
+class Opened:
+    page: object  # playwright's Page
+    errors: list[str]  # page errors and console errors
+    outside: list[str]  # requests that left the page's own file
+
+
+@pytest.fixture(scope="module")
+def opened(browser, report: Path):
+    """The report loaded once, from its file:// URL, every other request refused, the 3D view drawn."""
+    context = browser.new_context(viewport={"width": 1280, "height": 900})
+    seen = Opened(None, [], [])
+
+    def only_the_page(route):
+        if route.request.url.startswith(("file:", "data:", "blob:")):
+            route.continue_()
+        else:
+            seen.outside.append(route.request.url)
+            route.abort()
+
+    context.route("**/*", only_the_page)
+    page = context.new_page()
+    page.on("pageerror", lambda error: seen.errors.append(f"page error: {error}"))
+    page.on("console", lambda message: seen.errors.append(f"console: {message.text}") if message.type == "error" else None)
+    page.goto(report.as_uri())
+    page.wait_for_selector("#greenhouse-3d .main-svg")
+    page.wait_for_selector("#greenhouse-3d canvas")
+    page.wait_for_timeout(1000)  # WebGL draws on the next frames
+    seen.page = page
+    yield seen
+    context.close()
+
+
+def test_the_report_opens_offline_without_errors_and_draws_the_3d_view(opened: Opened, complete_run: Path, tmp_path: Path):
+    page = opened.page
+    assert page.locator("#greenhouse-3d .plotly").count() >= 1
+    for selector in ("#greenhouse-3d canvas", "#greenhouse-3d svg.main-svg"):
+        box = page.locator(selector).first.bounding_box()
+        assert box and box["width"] > 300 and box["height"] > 300, selector
+    view = tmp_path / "report_3d.png"
+    page.locator("#greenhouse-3d").scroll_into_view_if_needed()
+    page.locator("#greenhouse-3d").screenshot(path=str(view))
+    # the path's colour covers ~100 px in the legend (SVG) and more than a thousand where WebGL draws the path
+    assert _near(Image.open(view), PATH_COLOR) > 500, "the flown path (WebGL) was not drawn"
+    top = tmp_path / "report_top.png"
+    page.evaluate("window.scrollTo(0, 0)")
+    page.screenshot(path=str(top))
+    assert Image.open(top).size == (1280, 900)
+
+    assert page.evaluate("[...document.images].every(image => image.complete && image.naturalWidth > 0)")
+    scene = json.loads((complete_run / "scene.json").read_text())
+    assert page.locator(".card").count() == len(scene["plants"])
+    assert page.locator(".card img").count() >= 1
+    assert not opened.errors, opened.errors
+    assert not opened.outside, f"the page reached for the network: {opened.outside}"
+
+
+def test_the_yield_table_comes_first_with_the_numbers_of_counts_json(opened: Opened, complete_run: Path):
+    counts = json.loads((complete_run / "counts.json").read_text())
+    page = opened.page
+    assert page.evaluate("document.querySelector('main section').id") == "yield"
+    assert page.evaluate("document.querySelector('table').className") == "yield"
+    cells = page.evaluate("[...document.querySelector('table.yield').rows].map(row => [...row.cells].map(c => c.innerText.trim()))")
+    header, *rows, total = cells
+    assert header[:5] == ["Row", "Ripe fruit estimated", "Ripe fruit true", "Error, % of true", "Plants counted exactly"]
+    t = counts["total"]
+    exact = sum(p["estimate"] == p["truth"] for p in counts["plants"])
+    assert total == ["all rows", str(t["estimate"]), str(t["truth"]), signed_pct(t["error_pct"]),
+                     f"{exact} of {len(counts['plants'])} ({100 * exact / len(counts['plants']):.0f} %)",
+                     str(t["unseen"]), str(t["too_small"]), str(t["unripe_estimate"]), str(t["unripe_truth"])]
+    assert [row[:3] for row in rows] == [[f"row {r['id']}", str(r["estimate"]), str(r["truth"])] for r in counts["rows"]]
+
+
+def test_the_same_files_give_the_same_page(complete_run: Path):
+    page = build_report(complete_run)
+    assert page == build_report(complete_run)
+    plotly_js = max(re.findall(r"<script[^>]*>(.*?)</script>", page, flags=re.S), key=len)
+    assert len(page) - len(plotly_js) < 1_500_000, "the report's own content (images, 3D data) grew past 1.5 MB"
+
+
+def test_a_run_without_masks_still_gets_its_cards_and_says_what_it_cannot_know(complete_run: Path, tmp_path: Path):
+    run = tmp_path / "run"
+    shutil.copytree(complete_run, run)
+    shutil.rmtree(run / "masks")
+    counts = json.loads((run / "counts.json").read_text())
+    for part in (counts["total"], *counts["plants"]):
+        part.update({key: None for key in ("unseen", "too_small", "seen_error_pct") if key in part})
+    (run / "counts.json").write_text(json.dumps(counts))
+    page = build_report(run)
+    assert "has no instance masks" in page
+    assert page.count('class="card ') == len(counts["plants"]) and "data:image/jpeg;base64," in page
+
+
+@pytest.mark.parametrize("remove, stage", [(("counts.json", "harvest.json"), "count"), (("camera_info.yaml",), "render"),
+                                           (("detections.json",), "detect")])
+def test_a_run_missing_a_stage_s_files_names_the_stage_to_run(remove: tuple[str, ...], stage: str, complete_run: Path,
+                                                              tmp_path: Path, monkeypatch, capsys):
+    run = tmp_path / "run"
+    shutil.copytree(complete_run, run)
+    for name in remove:
+        (run / name).unlink()
+    code, out, err = cli(monkeypatch, capsys, "report", str(run))
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert f"(run `renderloop {stage}` first)" in err and remove[0] in err
+    assert not (run / "report.html").exists()
+
+
+def test_run_ends_with_the_yield_summary_and_the_report(monkeypatch, capsys, tmp_path: Path):
+    fast = tmp_path / "fast.yaml"
+    fast.write_text(yaml.safe_dump(FAST))
+    out = tmp_path / "demo"
+    code, stdout, stderr = cli(monkeypatch, capsys, "run", "--config", str(fast), "--out", str(out))
+    assert code == 0, stderr
+    counts = json.loads((out / "counts.json").read_text())
+    t = counts["total"]
+    exact = sum(p["estimate"] == p["truth"] for p in counts["plants"])
+    assert stdout.splitlines()[-3:] == [
+        f"ripe yield: {t['estimate']} estimated, {t['truth']} true ({signed_pct(t['error_pct'])})",
+        f"plants counted exactly: {exact} of {len(counts['plants'])} ({100 * exact / len(counts['plants']):.0f} %)",
+        f"report: {out / 'report.html'}",
+    ]
+    page = (out / "report.html").read_text()
+    assert "Stage times" in page and " in all; most of it went to " in page  # timings.json, in words
+    stamp = (out / "report.html").stat().st_mtime_ns
+
+    code, again, stderr = cli(monkeypatch, capsys, "run", "--config", str(fast), "--out", str(out))
+    assert code == 0 and stderr.count("complete, skipped") == 6
+    assert again.splitlines()[-3:] == stdout.splitlines()[-3:]
+    assert (out / "report.html").stat().st_mtime_ns == stamp  # nothing changed: the report is kept as it is
