@@ -360,9 +360,7 @@ class BouncesConfig(Strict):
 
 class RendererConfig(Strict):
     backend: Literal["cycles", "raster"] = Field("cycles", description="'cycles': Blender's path tracer; 'raster': MuJoCo's OpenGL renderer, milliseconds a frame, for tests and previews.")
-    # chosen by measurement (benchmarks/quality.py, 40 paper frames, 201 findable ripe fruit, shipped detector):
-    # ripe recall 0.592 at 1 sample, 0.587 at 2, 0.577 at 4 and 8, 0.582 at 128; false detections 11.2 % at 1,
-    # 11.4 % at 128. Denoised, one sample is all the detector needs: 0.94 s a 640x480 frame against 29 s at 128.
+    # Denoised, one sample is all the detector needs, at a thirtieth of 128's cost (docs/stages/render.md, quality).
     samples: Count(1, 65536) = Field(1, description="Cycles path-tracing samples per pixel.")
     adaptive_threshold: Fraction = Field(0.05, description="Cycles adaptive sampling noise threshold; 0 turns adaptive sampling off.")
     denoise: bool = Field(True, description="Denoise each frame with OpenImageDenoise.")

@@ -8,9 +8,8 @@ looks like the 320 px renders the network was trained on) and boxes are scaled b
 With window `layouts` the frame's overlapping windows are searched as well (`tiling`), with
 `mirror` the frame mirrored left to right (a second look at the same pixels that errs
 elsewhere: the network is not exactly symmetric), and what the passes found is merged
-(`fusion`). The windows are not mirrored: mirroring the 2x2 ones, four more passes, found
-no more fruit at the same rate of false detections on held-out paper seeds (measured with
-the step-6 and step-8 models of MODEL_CARD.md).
+(`fusion`). The windows are not mirrored: four more passes that found no more fruit at the
+same rate of false detections (docs/stages/perception.md).
 """
 
 from __future__ import annotations

@@ -5,9 +5,8 @@ pass sees the scene at another scale, crop or handedness. So overlapping boxes (
 whatever their class) are one object, boxed and labelled by its best box, scored by the
 noisy-OR of each pass's best score for it, 1 - prod(1 - s): the chance that at least one
 pass is right, were they independent. Agreement lifts a fruit that each pass saw at
-0.4; a box only one pass saw keeps its score. On paper seed 7 this beat class-wise NMS
-over the same boxes at every rate of false detections (at 6.6 % false: recall 0.82
-against about 0.79; at 4.7 %: 0.76 against about 0.69, read off its curve).
+0.4; a box only one pass saw keeps its score. It beat class-wise NMS over the same boxes
+at every rate of false detections (docs/stages/perception.md).
 """
 
 from __future__ import annotations
