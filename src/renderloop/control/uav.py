@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from renderloop.config import ControllerConfig
-from renderloop.control.pid import PID
+from renderloop.control.pid import PID, floats3
 from renderloop.robot.rotors import GRAVITY, RotorModel
 
 
@@ -49,24 +49,12 @@ class RigidBodyTerms:
     arm_acceleration: np.ndarray  # (3,) the joint accelerations the arm is about to be asked for
 
 
-def _vee(matrix: np.ndarray) -> np.ndarray:
-    return np.array([matrix[2, 1], matrix[0, 2], matrix[1, 0]])
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """np.cross costs ~30 µs on 3-vectors; this costs 2."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-def wanted_attitude(thrust_direction: np.ndarray, yaw: float) -> np.ndarray:
-    """Rotation whose z axis is the thrust direction and whose x axis points along `yaw`."""
-    side = _cross(thrust_direction, np.array([math.cos(yaw), math.sin(yaw), 0.0]))
-    side /= math.sqrt(side @ side)
-    return np.column_stack([_cross(side, thrust_direction), side, thrust_direction])
-
-
 class UavController:
+    """Gains, constants and loop states in arrays; the cascade itself is compiled (control.kernel.uav_wrench)."""
+
     def __init__(self, config: ControllerConfig, total_mass: float, rotors: RotorModel):
+        from renderloop.control import kernel  # numba loads with the first controller, not with the package
+
         dt = 1.0 / config.rate_hz
         self.config = config
         self.mass = total_mass
@@ -75,32 +63,28 @@ class UavController:
         self.velocity = PID([config.velocity_xy, config.velocity_xy, config.velocity_z], dt, integral_limit=3.0,
                             scale=[GRAVITY, GRAVITY, 1.0])  # xy gains are rad of tilt per m/s
         self.rate = PID([config.rate, config.rate, config.yaw_rate], dt, integral_limit=20.0)
-        self.attitude_gains = np.array([config.attitude.p, config.attitude.p, config.yaw.p])
+        self.attitude_gains = np.array([config.attitude.p, config.attitude.p, config.yaw.p], dtype=float)
         self.tilt_slope = math.tan(config.max_tilt)
+        self.constants = np.zeros(kernel.UAV_CONSTANTS)
+        self.constants[kernel.MASS] = total_mass
+        self.constants[kernel.TILT_SLOPE] = self.tilt_slope
+        self.constants[kernel.G] = GRAVITY
+        self.constants[kernel.ATTITUDE_GAIN:kernel.ATTITUDE_GAIN + 3] = self.attitude_gains
         self.saturated = False
+        self._wrench = kernel.uav_wrench
 
-    def acceleration(self, state: UavState, reference: UavReference) -> np.ndarray:
-        """Outer loops: the world acceleration wanted, tilt-limited."""
-        velocity = reference.velocity + self.position(reference.position - state.position)
-        wanted = reference.acceleration + self.velocity(velocity - state.velocity)
-        horizontal = math.hypot(wanted[0], wanted[1])
-        reach = (GRAVITY + wanted[2]) * self.tilt_slope
-        if horizontal > reach > 0:
-            wanted[:2] *= reach / horizontal
-        return wanted
+    def wrench(self, state: UavState, reference: UavReference, terms: RigidBodyTerms) -> tuple[float, float, float, float]:
+        """The wrench the cascade asks for: thrust along body z, moments about body x, y, z."""
+        position, velocity, rate = self.position, self.velocity, self.rate
+        return self._wrench(
+            position.params, position.state, velocity.params, velocity.state, rate.params, rate.state, self.constants,
+            floats3(state.position), floats3(state.velocity), np.asarray(state.rotation, dtype=float),
+            floats3(state.body_rates), floats3(reference.position), floats3(reference.velocity),
+            floats3(reference.acceleration), float(reference.yaw), float(reference.yaw_rate),
+            float(reference.yaw_acceleration), np.asarray(terms.rotational_mass, dtype=float),
+            np.asarray(terms.bias, dtype=float), floats3(terms.arm_acceleration),
+        )
 
     def rotor_speeds(self, state: UavState, reference: UavReference, terms: RigidBodyTerms) -> np.ndarray:
-        acceleration = self.acceleration(state, reference)
-        force = self.mass * (acceleration + np.array([0.0, 0.0, GRAVITY]))
-        thrust = max(float(force @ state.rotation[:, 2]), 0.0)
-        wanted = wanted_attitude(force / math.sqrt(force @ force), reference.yaw)
-        rotation = state.rotation
-        attitude_error = 0.5 * _vee(wanted.T @ rotation - rotation.T @ wanted)
-        to_body = rotation.T @ wanted
-        rate_error = to_body @ np.array([0.0, 0.0, reference.yaw_rate]) - self.attitude_gains * attitude_error - state.body_rates
-        angular_acceleration = to_body @ np.array([0.0, 0.0, reference.yaw_acceleration])
-        angular_acceleration += self.rate(rate_error)
-        generalized = np.concatenate([acceleration, angular_acceleration, terms.arm_acceleration])
-        moments = terms.rotational_mass @ generalized + terms.bias
-        speeds, self.saturated = self.rotors.mix(np.array([thrust, moments[0], moments[1], moments[2]]))
+        speeds, self.saturated = self.rotors.mix(np.array(self.wrench(state, reference, terms)))
         return speeds

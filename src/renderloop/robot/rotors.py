@@ -42,6 +42,8 @@ class RotorModel:
     """Rotor speeds <-> body wrench, with saturation and an optional first-order motor lag."""
 
     def __init__(self, robot: RobotConfig):
+        from renderloop.control import kernel  # numba loads with the first rotor model, not with the package
+
         rotor = robot.rotor
         self.kf = rotor.kf
         self.km = rotor.km
@@ -51,6 +53,7 @@ class RotorModel:
         self.geometry = rotor_geometry(robot.arm_length, rotor.layout)
         self.K = input_mapping(self.geometry, self.kf, self.km)
         self.K_inv = np.linalg.inv(self.K)
+        self._mix, self._lag = kernel.mix, kernel.lag
 
     def wrench(self, speeds: np.ndarray) -> np.ndarray:
         """[thrust, Mx, My, Mz] produced by rotor speeds in rad/s."""
@@ -62,16 +65,20 @@ class RotorModel:
         The mixer may ask for a negative w² (a moment too large for the thrust): that
         rotor stops, which is what a real ESC does too.
         """
-        squared = self.K_inv @ wrench
-        saturated = bool(squared.min() < 0.0 or squared.max() > self.max_speed_squared)
-        return np.sqrt(np.minimum(np.maximum(squared, 0.0), self.max_speed_squared)), saturated
+        thrust, mx, my, mz = (float(w) for w in wrench)
+        speeds, saturated = self._mix(self.K_inv, self.max_speed_squared, thrust, mx, my, mz)
+        return np.array(speeds), saturated
 
     def hover_speed(self, total_mass: float, gravity: float = GRAVITY) -> float:
         return math.sqrt(total_mass * gravity / (4.0 * self.kf))
 
+    def lag_alpha(self, dt: float) -> float:
+        """The share of the way to the commanded speeds a held command covers in dt; -1: no lag, all of it."""
+        return -1.0 if self.time_constant == 0.0 else 1.0 - math.exp(-dt / self.time_constant)
+
     def lag(self, current: np.ndarray, commanded: np.ndarray, dt: float) -> np.ndarray:
         """One step of the motor's first-order lag, exact for a command held over dt."""
-        if self.time_constant == 0.0:
-            return np.asarray(commanded, dtype=float).copy()
-        alpha = 1.0 - math.exp(-dt / self.time_constant)
-        return current + alpha * (np.asarray(commanded, dtype=float) - current)
+        speeds = np.array(current, dtype=float)
+        c0, c1, c2, c3 = (float(c) for c in commanded)
+        self._lag(speeds, self.lag_alpha(dt), c0, c1, c2, c3)
+        return speeds

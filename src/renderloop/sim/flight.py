@@ -16,7 +16,7 @@ import numpy as np
 
 from renderloop.config import Config
 from renderloop.control.arm import ArmController
-from renderloop.control.uav import RigidBodyTerms, UavController, UavReference, UavState
+from renderloop.control.uav import UavController
 from renderloop.errors import UserError
 from renderloop.robot.mjcf import CAMERA_SITE, JOINT_NAMES
 from renderloop.robot.rotors import RotorModel
@@ -107,9 +107,21 @@ class Flight:
         self.config = config
         self.camera = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, CAMERA_SITE)
         self.robot_geom = model.geom_bodyid >= uav  # the robot is the last subtree of the world
-        self.joint_qpos = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in JOINT_NAMES]
+        self.joint_qpos = np.array([model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in JOINT_NAMES])
         self.speeds = np.zeros(4)
         self.full_mass = np.zeros((model.nv, model.nv))
+        # The controllers' arithmetic runs compiled, one call a tick (control.kernel); what the call reads and
+        # writes is fetched here once, as each attribute of MjData makes a new array object.
+        from renderloop.control.kernel import control_tick
+
+        self._control_tick = control_tick
+        self._qpos, self._qvel, self._bias, self._ctrl = self.data.qpos, self.data.qvel, self.data.qfrc_bias, self.data.ctrl
+        self._quaternion = self.data.qpos[3:7]
+        self._rotation_flat = np.empty(9)
+        self._rotation = self._rotation_flat.reshape(3, 3)
+        self._lag_alpha, self._top_w2 = self.rotors.lag_alpha(self.dt), float(self.rotors.max_speed_squared)
+        self._noise = np.zeros(4)  # the position noise of a tick, and whether there is any
+        self._noise[3] = self.noise > 0
 
     def reset(self, dofs: np.ndarray) -> None:
         """Hover at q* at rest, rotors at hover speed, controllers with empty integrators."""
@@ -137,31 +149,20 @@ class Flight:
 
     def tick(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> None:
         """Controls for the reference (q*, q̇*, q̈*) at this instant, then one control period of physics."""
-        data = self.data
-        rotation = self.body_rotation()
-        position = data.qpos[:3].copy()
+        model, data = self.model, self.data
+        mujoco.mju_quat2Mat(self._rotation_flat, self._quaternion)
         if self.noise > 0:
-            position += self.rng.normal(0.0, self.noise, 3)
-        state = UavState(position, data.qvel[:3].copy(), rotation, data.qvel[3:6].copy())
-        reference = UavReference(q[:3], qd[:3], qdd[:3], float(q[3]), float(qd[3]), float(qdd[3]))
-        mujoco.mj_fullM(self.model, data, self.full_mass)
-
-        joint_ref, joint_rate_ref = q[4:7].copy(), qd[4:7].copy()
-        if self.compensate_pitch:  # the joints are pitch axes: the arm can undo the body's pitch
-            body_pitch = -math.asin(max(-1.0, min(1.0, rotation[2, 0])))  # nose down is positive, like q
-            joint_ref[0] -= body_pitch
-            joint_rate_ref[0] -= data.qvel[4]
-        torques, joint_acceleration = self.arm.torques(
-            data.qpos[self.joint_qpos], data.qvel[ARM], joint_ref, joint_rate_ref, qdd[4:7],
-            self.full_mass[ARM, ARM], data.qfrc_bias[ARM],
+            self._noise[:3] = self.rng.normal(0.0, self.noise, 3)
+        mujoco.mj_fullM(model, data, self.full_mass)
+        uav, arm = self.uav, self.arm
+        uav.saturated = self._control_tick(
+            uav.position.params, uav.position.state, uav.velocity.params, uav.velocity.state, uav.rate.params,
+            uav.rate.state, uav.constants, arm.pid.params, arm.pid.state, arm.max_torque, self.compensate_pitch,
+            self.rotors.K_inv, self._top_w2, self._lag_alpha, self.speeds, self._qpos, self._qvel, self.joint_qpos,
+            self.full_mass, self._bias, self._rotation, self._noise, q, qd, qdd, self._ctrl,
         )
-        terms = RigidBodyTerms(self.full_mass[3:6], data.qfrc_bias[3:6], joint_acceleration)
-        commanded = self.uav.rotor_speeds(state, reference, terms)
-        self.speeds = self.rotors.lag(self.speeds, commanded, self.dt)
-        data.ctrl[:4] = self.speeds**2
-        data.ctrl[4:7] = torques
-        mujoco.mj_step(self.model, data, nstep=self.substeps)
-        mujoco.mj_forward(self.model, data)
+        mujoco.mj_step(model, data, nstep=self.substeps)
+        mujoco.mj_forward(model, data)
 
     def body_rotation(self) -> np.ndarray:
         matrix = np.empty(9)
