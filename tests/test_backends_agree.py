@@ -1,4 +1,5 @@
-"""Cycles and the raster backend see the same scene: the same peppers where, the same depths."""
+"""Cycles and the raster backend see the same scene: the same peppers where, the same depths, in both plant
+styles (the 'pepper' style's leaves are instances in Cycles and one merged mesh in the raster view)."""
 
 from __future__ import annotations
 
@@ -13,9 +14,10 @@ from renderloop.robot.kinematics import look_at
 from renderloop.scene.generate import generate_scene
 
 
-@pytest.fixture(scope="module")
-def both():
+@pytest.fixture(scope="module", params=["simple", "pepper"])
+def both(request):
     data = load_config("demo").model_dump(mode="json")
+    data["plants"]["style"] = request.param
     data["camera"].update(width=160, height=120)
     data["renderer"].update(samples=4, denoise=False)
     config = type(load_config("demo")).model_validate(data)

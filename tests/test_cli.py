@@ -176,7 +176,7 @@ def test_entry_point_reports_bad_input_without_traceback(tmp_path: Path):
         capture_output=True, text=True,
     )
     assert result.returncode == 2
-    assert result.stderr.strip() == "renderloop: error: unknown preset 'nope' (choose from: demo, paper)"
+    assert result.stderr.strip() == "renderloop: error: unknown preset 'nope' (choose from: demo, paper, greenhouse)"
 
 
 def test_config_prints_the_resolved_config_and_the_schema_of_every_field(monkeypatch, capsys, tmp_path: Path):

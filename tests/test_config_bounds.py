@@ -245,7 +245,7 @@ SCENE_SECTIONS = ("seed", "greenhouse", "plants", "robot", "camera.width", "came
 SCENE_CAPS = {
     "greenhouse.size.0": 30.0, "greenhouse.size.1": 30.0, "greenhouse.table_size.1": 6.0,
     "greenhouse.plants_per_table": 8, "greenhouse.tables": 20.0, "greenhouse.workstation_center": 20.0,
-    "plants.bearing": 8, "plants.leaves": 100, "plants.flowers": 20, "plants.branches": 20, "plants.peppers.per_side": 10,
+    "plants.bearing": 8, "plants.leaves": 100, "plants.pepper_style.leaves": 100, "plants.flowers": 20, "plants.branches": 20, "plants.peppers.per_side": 10,
     "planner.points_per_ellipse": 40, "robot.home": 20.0,
 }
 SCENE_LEAVES = [leaf for leaf in LEAVES if leaf.name.startswith(SCENE_SECTIONS) and not leaf.length]

@@ -60,8 +60,9 @@ def test_eval_runs_every_seed_in_parallel_and_tables_their_counts(local_eval, fa
         counts = json.loads((out / f"seed_{row['seed']}" / "counts.json").read_text())
         assert (int(row["truth"]), int(row["estimate"])) == (counts["total"]["truth"], counts["total"]["estimate"])
         assert yaml.safe_load((out / f"seed_{row['seed']}" / "config.yaml").read_text())["seed"] == int(row["seed"])
-        assert f"| {row['seed']} | {row['truth']} | {row['estimate']} |" in stdout
-    summary = json.loads((out / "eval.json").read_text())["summary"]
+        assert row["mission"] == "static" and int(row["frames"]) == counts["detections"]["frames"]
+        assert f"| {row['seed']} | static | {row['frames']} | {float(row['flight_time_s']):.0f} | {row['truth']} | {row['estimate']} |" in stdout
+    summary = json.loads((out / "eval.json").read_text())["summary"]["static"]
     assert summary["scenarios"] == 2 and "mean absolute error" in stdout
     errors = [abs(float(row["error_pct"])) for row in rows]
     assert summary["mean_abs_error_pct"] == pytest.approx(sum(errors) / 2, abs=0.01)

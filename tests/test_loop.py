@@ -61,7 +61,7 @@ def test_a_replan_mid_flight_joins_without_a_jump_and_is_flown_safely(flown: Pat
         here, velocity, _ = sim.reference
         behind = -0.5 * velocity[:3] / np.linalg.norm(velocity[:3])  # back where it came from: it must turn round
         target = here + np.concatenate([behind + [0.0, 0.0, 0.1], [0.4, 0.0, 0.0, 0.1]])
-        end = sim.replan(np.array([target]))
+        [end] = sim.replan(np.array([target]))
         plan = sim.plan
         for before, after in zip(old, (plan.q, plan.qd, plan.qdd)):
             assert np.array_equal(before[: join + 1], after[: join + 1])  # the past, and the join itself, unchanged

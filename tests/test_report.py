@@ -121,7 +121,9 @@ def test_the_yield_table_comes_first_with_the_numbers_of_counts_json(opened: Ope
     exact = sum(p["estimate"] == p["truth"] for p in counts["plants"])
     assert total == ["all rows", str(t["estimate"]), str(t["truth"]), signed_pct(t["error_pct"]),
                      f"{exact} of {len(counts['plants'])} ({100 * exact / len(counts['plants']):.0f} %)",
-                     str(t["unseen"]), str(t["too_small"]), str(t["unripe_estimate"]), str(t["unripe_truth"])]
+                     str(t["unseen"]), str(t["too_small"]), str(t["unripe_estimate"]), str(t["unripe_truth"]),
+                     str(t["interval"]["low"]) if t["interval"]["low"] == t["interval"]["high"]
+                     else f"{t['interval']['low']}-{t['interval']['high']}"]
     assert [row[:3] for row in rows] == [[f"row {r['id']}", str(r["estimate"]), str(r["truth"])] for r in counts["rows"]]
 
 

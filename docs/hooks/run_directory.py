@@ -31,7 +31,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from config_reference import HEADER, MARKER, cell, kind, value_text  # noqa: E402
+from config_reference import MARKER, cell, kind, value_text  # noqa: E402
 
 log = logging.getLogger("mkdocs.hooks.run_directory")
 

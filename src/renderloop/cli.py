@@ -59,6 +59,9 @@ ConfigFile = Annotated[Path | None, typer.Option("--config", help="YAML file who
 Seed = Annotated[int | None, typer.Option(help="Seed of every random choice (overrides the config's).")]
 Out = Annotated[Path, typer.Option(help="Run directory to write into.")]
 Force = Annotated[bool, typer.Option("--force", help="Redo stages whose outputs already exist.")]
+MissionKind = Annotated[str | None, typer.Option(
+    "--mission", help="static: the planned scan; adaptive: a coarse pass, then re-scans where the count is uncertain "
+    "(mission.kind).")]
 RunDir = Annotated[Path, typer.Argument(help="Run directory made by `renderloop scene`.", show_default=False)]
 Windows = Annotated[str | None, typer.Option(help="Also search the windows of these columns x rows layouts of each image, "
                                              "e.g. 2x2,3x2; none: whole images only; default: the config's (2x2,3x2).")]
@@ -291,14 +294,19 @@ def evaluate_seeds(
     executor: Executor = "local",
     address: Address = None,
     force: Force = False,
+    mission: Annotated[str | None, typer.Option(
+        "--mission", help="static, adaptive, or both side by side: static,adaptive (default the config's mission.kind).")] = None,
 ) -> None:
     """The paper's experiment: one full run per seed, then the yield table (eval.csv, eval.json)."""
     if executor not in ("local", "ray"):
         raise UserError(f"--executor {executor}: choose from local, ray")
     seed_list = parse_seeds(seeds)
+    kinds = tuple(dict.fromkeys(kind.strip() for kind in mission.split(","))) if mission else None
+    for kind in kinds or ():
+        load_config(preset, config, mission=kind)  # an unknown mission is refused in one line, before any run
     base = load_config(preset, config)
     with _progress_bar("eval") as progress:
-        scenarios = evaluate(base, seed_list, out, workers, executor, address, force, progress)
+        scenarios = evaluate(base, seed_list, out, workers, executor, address, force, progress, kinds)
     write_eval(out, scenarios)
     typer.echo(format_table(scenarios))
     typer.echo(f"eval: wrote {out / EVAL_CSV} and {out / EVAL_JSON}")
@@ -358,11 +366,12 @@ def show_config(
 
 @app.command()
 def run(out: Out, preset: Preset = "demo", config: ConfigFile = None, seed: Seed = None, force: Force = False,
-        online: Annotated[bool, typer.Option("--online", help="Render and detect while flying (mission.online).")] = False) -> None:
+        online: Annotated[bool, typer.Option("--online", help="Render and detect while flying (mission.online).")] = False,
+        mission: MissionKind = None) -> None:
     """Run every stage of the pipeline in order, skipping stages that are already complete; then write report.html."""
     from renderloop.report.words import run_summary
 
-    resolved = load_config(preset, config, seed, online=online or None)
+    resolved = load_config(preset, config, seed, online=online or None, mission=mission)
     seconds = run_pipeline(out, resolved, force, Console(stderr=True))
     page = write_report(out, only_if_stale=True)  # not a stage: a report newer than every file it shows is kept
     typer.echo(f"run: {out} ({sum(seconds.values()):.1f} s)")

@@ -77,6 +77,56 @@ def _inside_room(center: tuple[float, float], size: tuple[float, ...], room: tup
 BoxSize = tuple[Real(0.1, 20.0), Real(0.1, MAX_ROOM_SIDE), Real(0.1, 5.0)]
 
 
+class EnvironmentConfig(Strict):
+    """What surrounds the scanned rows (scene/environment.py). Each scene draws its own value from every range
+    below (equal ends: a fixed value), stored in scene.json, so one seed gives one greenhouse and one light."""
+
+    kind: Literal["plain", "film"] = Field(
+        "plain", description="'plain': grey walls round the room and a flat-colour sky (the look the shipped detector "
+        "was trained on; the ranges below are not used). 'film': the room is one compartment of a film-clad greenhouse "
+        "that goes on beyond it (`extent`): white film walls and a Venlo roof on gutters, posts and trusses, a crop "
+        "wire over every row with a string down to each plant, neighbouring rows of plants (not scanned, not counted, "
+        "never in the masks) on white ground cover, lit in Cycles by a sky model and the sun at the drawn time of day "
+        "through the film. Only the strings and wires inside the room are collision objects.")
+    hour: tuple[Real(0.0, 24.0), Real(0.0, 24.0)] = Field(
+        (8.0, 17.0), description="Local solar time range, h (12: noon); a draw when the sun stands lower than 0.09 rad "
+        "is moved to the nearest time it stands that high.")
+    day_of_year: tuple[Count(1, 366), Count(1, 366)] = Field(
+        (60, 300), description="Day of the year range (1: 1 January), which sets the sun's path; a sweet-pepper crop is "
+        "harvested from March to November.")
+    latitude: Real(-1.2, 1.2) = Field(0.91, description="Latitude of the greenhouse, rad, north positive (0.91: the "
+                                      "Dutch glasshouse district). Rows run north-south, along the world's y.")
+    cloud: tuple[Fraction, Fraction] = Field(
+        (0.0, 1.0), description="Cloud cover range, 0-1: 0 a clear sky with the sun, 1 overcast, every light diffuse.")
+    aerosol: tuple[Real(0.0, 10.0), Real(0.0, 10.0)] = Field(
+        (0.5, 3.0), description="Aerosol density range of the sky model (Blender's Multiple Scattering sky): dust, haze "
+        "and water droplets, 1 a clear day, 3 or more hazy; it warms and dims the sun and brightens the sky.")
+    film_age: tuple[Fraction, Fraction] = Field(
+        (0.0, 1.0), description="Age of the roof and wall film range, 0-1: 0 new and clear, 1 yellowed, dusty and "
+        "more diffusing, letting less light through (the 'film' entry of scene/materials.py).")
+    clutter: tuple[Fraction, Fraction] = Field(
+        (0.3, 1.0), description="Clutter range, 0-1: how many yellow sticky insect traps hang over the neighbouring "
+        "rows, 1 being as many as scene/environment.py's TRAPS_PER_METRE says.")
+    extent: Real(0.0, 50.0) = Field(
+        4.5, description="How far the greenhouse goes on beyond the room on every side, m: the neighbouring rows stand "
+        "there and its film walls at the end. Nothing beyond the camera's far clip is drawn (camera.clip).")
+    row_pitch: Real(0.5, 10.0) = Field(1.6, description="Distance between the neighbouring rows beyond the room, m.")
+    gutter_height: Real(1.0, 20.0) = Field(
+        4.5, description="Height of the gutters that carry the film roof, m; the trusses under them must stay above the "
+        "room (the flight volume).")
+    wire_height: Real(0.5, 20.0) = Field(
+        3.8, description="Height of the crop wire above every row that the plants' strings hang from, m; above the "
+        "plants' tops and below the gutters.")
+
+    @model_validator(mode="after")
+    def _ranges(self) -> EnvironmentConfig:
+        for name in ("hour", "day_of_year", "cloud", "aerosol", "film_age", "clutter"):
+            _ordered_range(getattr(self, name), name)
+        if self.wire_height >= self.gutter_height:
+            raise ValueError(f"wire_height: {self.wire_height} m is not below the gutters at {self.gutter_height} m")
+        return self
+
+
 class GreenhouseConfig(Strict):
     """Room, tables (one row of plants each) and the manipulator workstation."""
 
@@ -94,6 +144,9 @@ class GreenhouseConfig(Strict):
     plant_spacing: Real(0.05, 10.0) = Field(0.5, description="Distance between neighbouring plants along a table, m.")
     workstation_center: Position2 = Field((0.0, 0.0), description="Centre (x, y) of the manipulator workstation, m.")
     workstation_size: BoxSize = Field((0.5, 1.0, 0.6), description="Workstation table width (x), length (y) and height (z), m.")
+    environment: EnvironmentConfig = Field(
+        EnvironmentConfig(), description="What surrounds the scanned rows: plain walls, or a film greenhouse with its "
+        "light and neighbouring rows.")
 
     @model_validator(mode="after")
     def _tables_fit(self) -> GreenhouseConfig:
@@ -149,9 +202,39 @@ class PepperConfig(Strict):
         return self
 
 
+class PepperStyleConfig(Strict):
+    """The foliage of the 'pepper' plant style: many instanced leaves on a dichotomously branching plant."""
+
+    leaves: tuple[Count(1, MAX_LEAVES_PER_PLANT), Count(1, MAX_LEAVES_PER_PLANT)] = Field(
+        (110, 180), description="Fewest and most leaves of a plant (a greenhouse pepper carries 60-200).")
+    leaf_length: tuple[Real(0.005, 1.0), Real(0.005, 1.0)] = Field(
+        (0.07, 0.17), description="Leaf blade length range, m (the petiole adds a quarter of it).")
+    leaf_width_ratio: tuple[Real(0.05, 2.0), Real(0.05, 2.0)] = Field(
+        (0.45, 0.6), description="Leaf blade width over its length, range.")
+    yellowed: Fraction = Field(0.05, description="Share of leaves yellowed with age, 0-1.")
+    damaged: Fraction = Field(0.06, description="Share of leaves with a torn edge or an eaten hole, 0-1.")
+    dusty: Fraction = Field(0.1, description="Share of leaves under a grey film of dust or spray residue, 0-1.")
+    fruit_window: Fraction = Field(
+        0.6, description="Radius of the leaf-free window in front of each fruit as the scan sees it (from its side of "
+        "the row), over the fruit's bounding radius, 0-1: leaves may hide a fruit's rim, never its middle.")
+
+    @model_validator(mode="after")
+    def _ranges(self) -> PepperStyleConfig:
+        for name in ("leaves", "leaf_length", "leaf_width_ratio"):
+            _ordered_range(getattr(self, name), name)
+        return self
+
+
 class PlantConfig(Strict):
     """Procedural pepper plants: stem, branches, leaves, flowers, fruit, pot."""
 
+    style: Literal["simple", "pepper"] = Field(
+        "simple", description="How plants grow. 'simple': 30-55 smooth leaves on a few straight branches (the look the "
+        "shipped detector was trained on; `branches`, `leaves` and `leaf_*` describe it). 'pepper': a dichotomously "
+        "branching plant, fruit hanging from its nodes on a peduncle with a calyx, dense instanced leaves with veins, "
+        "wrinkles and a waxy sheen (`pepper_style` describes them). One seed places the same fruit (where, how big, "
+        "which colour) in both styles.")
+    pepper_style: PepperStyleConfig = Field(PepperStyleConfig(), description="The foliage of the 'pepper' style.")
     bearing: Count(1, MAX_PLANTS) | None = Field(20, description="Plants bearing fruit; null means every plant.")
     # Greenhouse peppers are trained up to 3-4 m.
     volume: tuple[Real(0.05, 3.0), Real(0.05, 3.0), Real(0.05, 5.0)] = Field(
@@ -174,6 +257,11 @@ class PlantConfig(Strict):
         for name in ("branches", "leaves", "leaf_length", "leaf_width_ratio", "leaf_curvature", "flowers"):
             _ordered_range(getattr(self, name), name)
         return self
+
+    @property
+    def most_leaves(self) -> int:
+        """The most leaves one plant of this style can have."""
+        return self.pepper_style.leaves[1] if self.style == "pepper" else self.leaves[1]
 
 
 class RotorConfig(Strict):
@@ -404,6 +492,33 @@ class DetectorConfig(Strict):
         return [layout(text) for text in self.windows]
 
 
+class IntervalConfig(Strict):
+    """The interval of each plant's ripe count (renderloop.counting.uncertainty): every counted cluster is a real
+    fruit (weak ones with probability `weak_real`), plus hidden fruit ~ Poisson(hidden + hidden_per_lone x lone
+    detections + hidden_unseen x unseen fraction), mixed over redraws of the random fixed set. weak_real, hidden and
+    hidden_per_lone are fitted by benchmarks/intervals.py (docs/stages/counting.md)."""
+
+    level: Real(0.5, 0.999) = Field(0.9, description="Probability the interval holds the true count (its central quantiles).")
+    redraws: Count(1, 64) = Field(
+        8, description="Counts of each row the interval mixes: the estimate and redraws - 1 redraws of the random fixed "
+        "set, each costing as much as counting the ripe rows again.")
+    weak_margin: Real(1.0, 100.0) = Field(
+        2.0, description="A cluster of fewer points than weak_margin x MinPts is weakly supported (2: fewer than twice "
+        "the views a fruit needs).")
+    min_spread: Real(0.0, math.pi) = Field(
+        0.35, description="A cluster whose view directions (its centre to the cameras) all lie within this angle of "
+        "one another was seen from one side only, and is weak, rad.")
+    weak_real: Fraction = Field(1.0, description="Probability that a weak cluster is a real ripe fruit of its plant.")
+    hidden: Real(0.0, 100.0) = Field(
+        0.02, description="Expected ripe fruit of a plant that no cluster stands for, however well it was seen.")
+    hidden_per_lone: Real(0.0, 100.0) = Field(
+        0.3, description="Expected hidden ripe fruit added by each lone detection of the plant: one in no cluster and "
+        "farther than 2 eps from every counted fruit, a fruit seen once.")
+    hidden_unseen: Real(0.0, 1000.0) = Field(
+        4.0, description="Expected hidden ripe fruit of a plant whose canopy box no depth frame has seen, scaled by the "
+        "unseen fraction; a prior (about the ripe fruit a demo or paper plant bears), not fitted.")
+
+
 class CountingConfig(Strict):
     """Yield counting (OPTICS on the multi-view fruit points of each row) and the harvest plan."""
 
@@ -422,14 +537,34 @@ class CountingConfig(Strict):
         4, description="LocalOutlierFactor n_neighbors when use_layout is false; keep it below the fewest views of a fruit."
     )
     harvest_min_ripe: Count(1, 1000) = Field(1, description="Ripe fruit a plant must be expected to bear to be brought to the workstation.")
+    interval: IntervalConfig = Field(IntervalConfig(), description="The interval of each plant's, row's and the total ripe count.")
+
+
+class AdaptiveConfig(Strict):
+    """The adaptive mission: a coarse pass over every plant, then re-scans of the plants whose count is uncertain."""
+
+    first_pass_rate_hz: Real(0.01, MAX_CAMERA_RATE_HZ) = Field(
+        0.5, description="Camera rate of the coarse first pass (the static scan's path), Hz.")
+    views_per_round: Count(1, 50) = Field(3, description="Most views added to one plant in one re-scan.")
+    rounds: Count(1, 10) = Field(2, description="Most re-scans of one plant.")
+    budget_s: Real(0.0, 3600.0) = Field(
+        20.0, description="Flight time the re-scans of one plant may add, s; 0 flies the first pass only.")
+    voxel: Real(0.005, 0.2) = Field(0.02, description="Edge of a cell of the voxel map built from the depth frames, m.")
+    min_gain: Count(0, 1_000_000) = Field(
+        20, description="Unknown cells of the canopy a view must newly see to be worth flying to (an uncertain fruit "
+        "it sees counts as a whole canopy's worth).")
 
 
 class MissionConfig(Strict):
     """How the scan is flown."""
 
+    kind: Literal["static", "adaptive"] = Field(
+        "static", description="static: the planned scan at the camera's rate. adaptive: a coarse first pass at "
+        "mission.adaptive.first_pass_rate_hz, then re-scans of uncertain plants from next-best views (always online).")
     online: bool = Field(False, description="Render and detect while flying (the simulation steps, the camera renders "
                          "at its instants, perception runs on each frame as it arrives); same files and counts as the "
                          "batch stages fly, render, detect.")
+    adaptive: AdaptiveConfig = Field(AdaptiveConfig(), description="The adaptive mission's settings.")
 
 
 class Config(Strict):
@@ -450,8 +585,9 @@ class Config(Strict):
         total = len(self.greenhouse.tables) * self.greenhouse.plants_per_table
         if self.plants.bearing is not None and self.plants.bearing > total:
             raise ValueError(f"plants.bearing: {self.plants.bearing} bearing plants but the greenhouse has {total}")
-        if total * self.plants.leaves[1] > MAX_LEAVES:
-            raise ValueError(f"plants.leaves: {total} plants of up to {self.plants.leaves[1]} leaves are more than {MAX_LEAVES} leaves")
+        if total * self.plants.most_leaves > MAX_LEAVES:
+            field = "plants.pepper_style.leaves" if self.plants.style == "pepper" else "plants.leaves"
+            raise ValueError(f"{field}: {total} plants of up to {self.plants.most_leaves} leaves are more than {MAX_LEAVES} leaves")
         if self.camera.rate_hz > self.controller.rate_hz:
             raise ValueError(f"camera.rate_hz: frames are taken at control ticks, so {self.camera.rate_hz:g} Hz cannot be "
                              f"served by a {self.controller.rate_hz:g} Hz controller")
@@ -466,7 +602,7 @@ def config_schema() -> dict[str, Any]:
     return Config.model_json_schema()
 
 
-PRESETS = ("demo", "paper")
+PRESETS = ("demo", "paper", "greenhouse")
 
 
 def _read_yaml_mapping(text: str, source: str) -> dict[str, Any]:
@@ -519,8 +655,8 @@ def validate(data: dict[str, Any], source: str) -> Config:
 
 
 def load_config(preset: str = "demo", config_file: Path | None = None, seed: int | None = None,
-                online: bool | None = None) -> Config:
-    """Preset, then the user's YAML over it, then the command line (seed, --online) over both."""
+                online: bool | None = None, mission: str | None = None) -> Config:
+    """Preset, then the user's YAML over it, then the command line (seed, --online, --mission) over both."""
     data = preset_overrides(preset)
     source = f"preset {preset}"
     if config_file is not None:
@@ -530,6 +666,8 @@ def load_config(preset: str = "demo", config_file: Path | None = None, seed: int
         data = deep_merge(data, {"seed": seed})
     if online is not None:
         data = deep_merge(data, {"mission": {"online": online}})
+    if mission is not None:
+        data = deep_merge(data, {"mission": {"kind": mission}})
     return validate(data, source)
 
 

@@ -36,7 +36,13 @@ STAGES: tuple[Stage, ...] = (scene_stage.STAGE, plan_stage.STAGE, fly_stage.STAG
 ONLINE_STAGES: tuple[Stage, ...] = (scene_stage.STAGE, plan_stage.STAGE, online_stage.STAGE, count_stage.STAGE)
 
 
+# `mission.kind: adaptive`: the loop online, steered by what it counts (renderloop.loop.mission)
+ADAPTIVE_STAGES: tuple[Stage, ...] = (scene_stage.STAGE, plan_stage.STAGE, online_stage.ADAPTIVE_STAGE, count_stage.STAGE)
+
+
 def stages_of(config: Config) -> tuple[Stage, ...]:
+    if config.mission.kind == "adaptive":
+        return ADAPTIVE_STAGES
     return ONLINE_STAGES if config.mission.online else STAGES
 
 

@@ -32,6 +32,7 @@ draws of the demo scene, fruit 9.5 cm apart).
 
 from __future__ import annotations
 
+import hashlib
 import math
 import warnings
 from collections.abc import Iterable
@@ -73,11 +74,27 @@ class RowClusters:
     centers: np.ndarray  # (K, 3) one per cluster, in label order
     n_init: int  # detections of the row before resampling
     min_samples: int  # MinPts used (0 when the row was too small to cluster)
+    source: np.ndarray  # (M,) the row detection each point is, or is a copy of
+
+    def support(self) -> np.ndarray:
+        """(K,) detections (not augmented copies) in each cluster, in cluster order: the views that make a fruit."""
+        return np.array([np.count_nonzero(self.original & (self.labels == k)) for k in range(len(self.centers))], dtype=int)
+
+    def members(self, cluster: int) -> np.ndarray:
+        """The row detections (indices into the row's points) that are in one cluster; copies do not count."""
+        return self.source[self.original & (self.labels == cluster)]
 
 
-def rng_for(seed: int, row: int, label: str) -> np.random.Generator:
-    """One generator per (run seed, row, class), so a row's counts do not depend on the order rows are done in."""
-    return np.random.default_rng(np.random.SeedSequence([seed, row, CLASSES.index(label)]))
+def rng_for(seed: int, row: int, label: str, draw: int = 0) -> np.random.Generator:
+    """One generator per (run seed, row, class), so a row's counts do not depend on the order rows are done in.
+
+    Draw 0 is the count's own stream; draws 1, 2, ... are further streams of the same
+    (row, class), for redrawing the random fixed set (`renderloop.counting.uncertainty`)
+    without changing the count. SeedSequence pads its entropy with zeros, so the draw is
+    appended only when it is not 0: [seed, row, class, 0] would be draw 0's stream anyway.
+    """
+    entropy = [seed, row, CLASSES.index(label)] + ([draw] if draw else [])
+    return np.random.default_rng(np.random.SeedSequence(entropy))
 
 
 def min_samples_for(n_init: int, points: int, min_views: int) -> int:
@@ -96,15 +113,23 @@ def resample(detections: np.ndarray, points: int, noise_std: float, rng: np.rand
 
     Equal shares are what MinPts = min_views * ceil(points / n) assumes: a pepper seen k
     times owns k * ceil(points / n) points, so "seen twice" is exactly the threshold.
+    Returns the points and, per point, whether it is a detection (not a copy).
     """
+    fixed, original, _ = _resample(detections, points, noise_std, rng)
+    return fixed, original
+
+
+def _resample(detections: np.ndarray, points: int, noise_std: float,
+              rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`resample`, and also the detection each point is or copies."""
     n = len(detections)
     if n >= points:
         keep = np.sort(rng.choice(n, size=points, replace=False))
-        return detections[keep], np.ones(points, dtype=bool)
+        return detections[keep], np.ones(points, dtype=bool), keep
     extra = np.tile(np.arange(n), math.ceil(points / n) - 1)
     copies = detections[extra] + rng.normal(0.0, noise_std, size=(len(extra), 3))
     original = np.concatenate([np.ones(n, dtype=bool), np.zeros(len(extra), dtype=bool)])
-    return np.vstack([detections, copies]), original
+    return np.vstack([detections, copies]), original, np.concatenate([np.arange(n), extra])
 
 
 def _centers(points: np.ndarray, original: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -123,18 +148,24 @@ def cluster_row(detections: np.ndarray, params: ClusterParams, rng: np.random.Ge
     n_init = len(detections)
     if n_init < params.min_views:  # nobody saw a pepper twice: nothing to count
         empty = np.zeros((0, 3))
-        return RowClusters(detections, np.ones(n_init, dtype=bool), -np.ones(n_init, dtype=int), empty, n_init, 0)
+        return RowClusters(detections, np.ones(n_init, dtype=bool), -np.ones(n_init, dtype=int), empty, n_init, 0,
+                           np.arange(n_init))
     # imported here, not at the top: scikit-learn would cost every CLI verb a second
+    import sklearn
+    from scipy.spatial.distance import cdist
     from sklearn.cluster import OPTICS
 
-    points, original = resample(detections, params.points, params.noise_std, rng)
+    points, original, source = _resample(detections, params.points, params.noise_std, rng)
     min_samples = min_samples_for(n_init, params.points, params.min_views)
-    optics = OPTICS(min_samples=min_samples, max_eps=params.eps, cluster_method=params.method,
+    # The distances precomputed (a 500 x 500 matrix) and scikit-learn's per-call input checks off (the points are
+    # ours, finite): OPTICS queries the neighbours of every point one by one, and those checks were most of its time.
+    optics = OPTICS(min_samples=min_samples, max_eps=params.eps, cluster_method=params.method, metric="precomputed",
                     eps=params.eps if params.method == "dbscan" else None, xi=params.xi)
-    with warnings.catch_warnings():  # detections too sparse to cluster are no fruit: the answer, not a problem
+    with warnings.catch_warnings(), sklearn.config_context(assume_finite=True, skip_parameter_validation=True):
+        # detections too sparse to cluster are no fruit: the answer, not a problem
         warnings.filterwarnings("ignore", message="All reachability values are inf", category=UserWarning)
-        labels = optics.fit(points).labels_.astype(int)
-    return RowClusters(points, original, labels, _centers(points, original, labels), n_init, min_samples)
+        labels = optics.fit(cdist(points, points)).labels_.astype(int)
+    return RowClusters(points, original, labels, _centers(points, original, labels), n_init, min_samples, source)
 
 
 @dataclass(frozen=True)
@@ -147,16 +178,26 @@ class RowCount:
     clusters: RowClusters
     plants: np.ndarray  # (K,) plant id of each cluster centre
     removed: np.ndarray  # (R, 3)
+    indices: np.ndarray  # (n_init,) where each of the row's clustered detections is in the class's points
 
 
-def class_points(frames: Iterable[DetectionFrame]) -> dict[str, np.ndarray]:
-    """World points of each class, in frame order; detections without depth have no place to count."""
+def class_detections(frames: Iterable[DetectionFrame]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """World points (N, 3) of each class in the order the frames come, and the frame index (N,) each was seen in;
+    detections without depth have no place to count."""
     points: dict[str, list] = {label: [] for label in CLASSES}
+    seen_in: dict[str, list[int]] = {label: [] for label in CLASSES}
     for frame in frames:
         for detection in frame.detections:
             if detection.position is not None:
                 points[detection.label].append(detection.position)
-    return {label: np.array(found, dtype=float).reshape(-1, 3) for label, found in points.items()}
+                seen_in[detection.label].append(frame.index)
+    return {label: (np.array(points[label], dtype=float).reshape(-1, 3), np.array(seen_in[label], dtype=int))
+            for label in CLASSES}
+
+
+def class_points(frames: Iterable[DetectionFrame]) -> dict[str, np.ndarray]:
+    """World points of each class, in frame order; detections without depth have no place to count."""
+    return {label: points for label, (points, _) in class_detections(frames).items()}
 
 
 def params_from(counting: CountingConfig) -> ClusterParams:
@@ -164,7 +205,12 @@ def params_from(counting: CountingConfig) -> ClusterParams:
                          min_views=counting.min_views, method=counting.cluster_method, xi=counting.xi)
 
 
-def count_rows(scene: Scene, detections: np.ndarray, label: str, counting: CountingConfig, seed: int) -> list[RowCount]:
+# (row id, class, draw) -> (seed, counting config, digest of the row's detections, its clustering, its plants)
+RowMemo = dict[tuple[int, str, int], tuple[int, CountingConfig, bytes, RowClusters, np.ndarray]]
+
+
+def count_rows(scene: Scene, detections: np.ndarray, label: str, counting: CountingConfig, seed: int,
+               draw: int = 0, memo: RowMemo | None = None) -> list[RowCount]:
     """Split one class's world points (N, 3) into rows, drop the false positives, count every row.
 
     With `counting.use_layout` the plant volumes both assign and filter; without it the
@@ -172,6 +218,12 @@ def count_rows(scene: Scene, detections: np.ndarray, label: str, counting: Count
     nearest table so the row plots can show them. The paper filters after resampling;
     here the false positives go first, so n_init and the 500 points are all the row's
     own and MinPts is not inflated by detections that are thrown away anyway.
+
+    `draw` 0 is the count; another draw redraws the random fixed set of every row from
+    its own stream (`rng_for`), everything else the same. `memo` (one per scene) keeps
+    each row's last clustering and reuses it while the row's detections, the seed and the
+    settings are the same: a caller that counts again and again as frames come (the
+    online counter) then pays only for the rows whose detections changed.
     """
     detections = np.asarray(detections, dtype=float).reshape(-1, 3)
     nearest_row = rows_by_table(scene, detections)
@@ -184,13 +236,21 @@ def count_rows(scene: Scene, detections: np.ndarray, label: str, counting: Count
     params = params_from(counting)
     counts = []
     for row in scene.rows:
-        mine = detections[row_ids == row.id]
+        indices = np.flatnonzero(row_ids == row.id)
+        mine = detections[indices]
         removed = detections[(row_ids == NO_PLANT) & (nearest_row == row.id)]
         if not counting.use_layout:
             keep = lof_inliers(mine, counting.lof_neighbors)
-            mine, removed = mine[keep], mine[~keep]
-        clusters = cluster_row(mine, params, rng_for(seed, row.id, label))
-        plants = np.array([plant_of_center(scene, row, center, counting.use_layout, counting.volume_margin)
-                           for center in clusters.centers], dtype=int)
-        counts.append(RowCount(row.id, label, clusters, plants, removed))
+            mine, removed, indices = mine[keep], mine[~keep], indices[keep]
+        key, digest = (row.id, label, draw), hashlib.sha1(mine.tobytes()).digest()
+        last = memo.get(key) if memo is not None else None
+        if last is not None and last[:3] == (seed, counting, digest):
+            clusters, plants = last[3:]
+        else:
+            clusters = cluster_row(mine, params, rng_for(seed, row.id, label, draw))
+            plants = np.array([plant_of_center(scene, row, center, counting.use_layout, counting.volume_margin)
+                               for center in clusters.centers], dtype=int)
+            if memo is not None:
+                memo[key] = (seed, counting, digest, clusters, plants)
+        counts.append(RowCount(row.id, label, clusters, plants, removed, indices))
     return counts

@@ -1,7 +1,8 @@
 """`renderloop count DIR`: count the fruit per plant and per row from detections.json; plan the harvest.
 
 Reads `config.yaml`, `scene.json` (layout and truth), `groundtruth.txt` (how many
-frames were flown) and `detections.json`; writes one clustering plot per row in
+frames were flown, and where the camera was for each: the sides each fruit was seen
+from, for the count's intervals) and `detections.json`; writes one clustering plot per row in
 `counts/row_<id>.png`, then `harvest.json` (`renderloop.counting.harvest`) and
 `counts.json` last (`renderloop.rundir.models.Counts`): the settings it records
 (counting config and seed) mark the stage done, so changing them, or --no-layout,
@@ -21,6 +22,12 @@ from renderloop.config import Config, CountingConfig
 from renderloop.counting.cluster import CLASSES, RowCount, class_points, count_rows
 from renderloop.counting.harvest import plan_harvest
 from renderloop.counting.plots import draw_row
+from renderloop.counting.uncertainty import (
+    LABEL,
+    CountUncertainty,
+    Uncertainty,
+    uncertainty,
+)
 from renderloop.counting.visibility import Seen, fruit_visibility
 from renderloop.errors import UserError
 from renderloop.rundir import files, names
@@ -59,10 +66,25 @@ def _scan_misses(scene: Scene, seen: dict[int, Seen] | None) -> dict[int, dict[s
     return misses
 
 
+def _interval(count: CountUncertainty) -> dict:
+    return {"low": count.low, "high": count.high, "level": count.level}
+
+
+def _plant_uncertainty(scene: Scene, found: Uncertainty | None) -> dict[int, dict]:
+    """Per plant, the interval, the weak clusters and the unseen fraction (None without an uncertainty)."""
+    if found is None:
+        return {plant.id: {"interval": None, "weak_clusters": None, "unseen_fraction": None} for plant in scene.plants}
+    return {plant_id: {"interval": _interval(plant), "weak_clusters": len(plant.weak_centers),
+                       "unseen_fraction": None if plant.unseen is None else round(plant.unseen, DIGITS)}
+            for plant_id, plant in found.plants.items()}
+
+
 def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detections, settings: dict,
-              seen: dict[int, Seen] | None = None) -> Counts:
-    """The `counts.json` document from the per-row clusterings of both classes."""
+              seen: dict[int, Seen] | None = None, uncertain: Uncertainty | None = None) -> Counts:
+    """The `counts.json` document from the per-row clusterings of both classes; with `uncertain`, the ripe counts'
+    intervals (`renderloop.counting.uncertainty`), which must have been made from the same ripe rows."""
     truth, misses = _truth(scene), _scan_misses(scene, seen)
+    intervals = _plant_uncertainty(scene, uncertain)
     centers = {plant.id: {label: [] for label in CLASSES} for plant in scene.plants}
     for label, rows in counts.items():
         for row in rows:
@@ -75,6 +97,7 @@ def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detec
         "clusters": _rounded(np.array(centers[plant.id]["ripe"]).reshape(-1, 3)),
         "unripe_clusters": _rounded(np.array(centers[plant.id]["unripe"]).reshape(-1, 3)),
         **misses[plant.id],
+        **intervals[plant.id],
     } for plant in scene.plants]
     by_row = {label: {row.row: row for row in rows} for label, rows in counts.items()}
     rows = []
@@ -87,10 +110,12 @@ def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detec
             "unripe_detections": by_row["unripe"][row.id].clusters.n_init,
             "removed": len(by_row["ripe"][row.id].removed),
             "unripe_removed": len(by_row["unripe"][row.id].removed),
+            "interval": None if uncertain is None else _interval(uncertain.rows[row.id]),
         })
     total = {key: sum(plant[key] for plant in plants) for key in ("estimate", "truth", "unripe_estimate", "unripe_truth")}
     total["error_pct"] = _error_pct(total["estimate"], total["truth"])
     total["exact_plants"] = round(sum(p["estimate"] == p["truth"] for p in plants) / len(plants), DIGITS) if plants else None
+    total["interval"] = None if uncertain is None else _interval(uncertain.total)
     if seen is not None:
         total["unseen"] = sum(p["unseen"] for p in plants)
         total["too_small"] = sum(p["too_small"] for p in plants)
@@ -127,11 +152,14 @@ def _current(run_dir: Path, config: Config) -> bool:
 def _count(run_dir: Path, config: Config, job: Job) -> None:
     counting = config.counting
     scene = files.read_scene(run_dir)
-    times, _ = files.read_poses(run_dir)
+    times, poses = files.read_poses(run_dir)
     detections = files.read_detections(run_dir, len(times))
     points = class_points(detections.frames)
     counts = {label: count_rows(scene, points[label], label, counting, config.seed) for label in CLASSES}
-    document = summarise(scene, counts, detections, settings_of(counting, config.seed), fruit_visibility(run_dir, len(times)))
+    cameras = {index: pose[:3, 3] for index, pose in enumerate(poses)}
+    uncertain = uncertainty(scene, detections.frames, cameras, counting, config.seed, estimate=counts[LABEL])
+    document = summarise(scene, counts, detections, settings_of(counting, config.seed),
+                         fruit_visibility(run_dir, len(times)), uncertain)
 
     truth = _truth(scene)
     for index, row in enumerate(scene.rows):

@@ -31,20 +31,22 @@ from renderloop.rundir.stage import claim
 Progress = Callable[[int, int], None]
 
 
-def run_dir_of(out: Path, seed: int) -> Path:
-    return Path(out) / f"seed_{seed}"
+def run_dir_of(out: Path, config: Config) -> Path:
+    """seed_<n> for the static scan, seed_<n>_adaptive for the adaptive mission: both side by side in one evaluation."""
+    kind = config.mission.kind
+    return Path(out) / (f"seed_{config.seed}" if kind == "static" else f"seed_{config.seed}_{kind}")
 
 
 def _older_evaluation(directory: Path) -> bool:
     """An evaluation from before the ownership mark: only seed runs and the table in it."""
-    return all(re.fullmatch(r"seed_\d+", entry.name) or entry.name in (EVAL_CSV, EVAL_JSON) for entry in directory.iterdir())
+    return all(re.fullmatch(r"seed_\d+(_adaptive)?", entry.name) or entry.name in (EVAL_CSV, EVAL_JSON) for entry in directory.iterdir())
 
 
 def run_seed(out: Path, config: Config, force: bool) -> Scenario:
     """One scenario end to end, quietly (many run at once; the caller shows one progress bar)."""
-    run_dir = run_dir_of(out, config.seed)
+    run_dir = run_dir_of(out, config)
     run_pipeline(run_dir, config, force, Console(file=io.StringIO()))
-    return scenario(config.seed, run_dir)
+    return scenario(config.seed, config.mission.kind, run_dir)
 
 
 def _local(out: Path, configs: list[Config], force: bool, workers: int) -> Iterator[Scenario]:
@@ -72,15 +74,19 @@ def _ray(out: Path, configs: list[Config], force: bool, workers: int, address: s
 
 
 def evaluate(base: Config, seeds: list[int], out: Path, workers: int = 1, executor: str = "local",
-             address: str | None = None, force: bool = False, progress: Progress | None = None) -> list[Scenario]:
-    """Every seed's scenario, in seed order; `progress` hears (runs finished, runs) as they finish."""
+             address: str | None = None, force: bool = False, progress: Progress | None = None,
+             missions: tuple[str, ...] | None = None) -> list[Scenario]:
+    """Every seed's scenario under each mission (default the config's), in seed order; `progress` hears (runs
+    finished, runs) as they finish."""
     out = ownership.claim(Path(out), ownership.EVAL, adopt=_older_evaluation)
     shared = threads_per_worker(base, workers)
-    configs = [shared.model_copy(update={"seed": seed}) for seed in seeds]
+    kinds = missions or (base.mission.kind,)
+    configs = [shared.model_copy(update={"seed": seed, "mission": shared.mission.model_copy(update={"kind": kind})})
+               for seed in seeds for kind in kinds]
     for config in configs:  # refuse before any work, not after hours of it
-        claim(run_dir_of(out, config.seed))
+        claim(run_dir_of(out, config))
         if not force:
-            files.check_config(run_dir_of(out, config.seed), config)
+            files.check_config(run_dir_of(out, config), config)
     runs = _ray(out, configs, force, workers, address) if executor == "ray" else _local(out, configs, force, workers)
     finished: list[Scenario] = []
     if progress:
@@ -89,4 +95,4 @@ def evaluate(base: Config, seeds: list[int], out: Path, workers: int = 1, execut
         finished.append(result)
         if progress:
             progress(len(finished), len(configs))
-    return sorted(finished, key=lambda s: seeds.index(s.seed))
+    return sorted(finished, key=lambda s: (seeds.index(s.seed), kinds.index(s.mission)))

@@ -217,7 +217,7 @@ class PepperScanEnv(gymnasium.Env):
         before = self.sim.t
         view, waypoints = self.projector.project(self.view, wanted)
         try:
-            end = self.sim.replan(np.array(waypoints)) if waypoints else None
+            end = float(self.sim.replan(np.array(waypoints))[-1]) if waypoints else None
         except UserError:  # TOPP-RA found no parameterisation: the robot stays where it is
             end = None
         if end is None:

@@ -65,8 +65,9 @@ class ReferencePlan:
             return self.q[tick], self.qd[tick], self.qdd[tick]
         return self.q[-1], np.zeros(7), np.zeros(7)
 
-    def replan(self, tick: int, waypoints: np.ndarray, planner: PlannerConfig, hold: float) -> None:
-        """From `tick` on, fly through `waypoints` (rows of q*), joined to the current reference without a jump.
+    def replan(self, tick: int, waypoints: np.ndarray, planner: PlannerConfig, hold: float) -> np.ndarray:
+        """From `tick` on, fly through `waypoints` (rows of q*), joined to the current reference without a jump;
+        returns when the new reference passes each waypoint (simulation seconds, the last one its end).
 
         The new motion keeps the current speed where the limits allow the turn into the new path; where they do not
         (a waypoint close ahead, or behind), it brakes to a stop first, on a quintic, and leaves from rest."""
@@ -99,6 +100,7 @@ class ReferencePlan:
         self.qd = np.vstack([self.qd[:tick], joined[1], tail.qd])
         self.qdd = np.vstack([self.qdd[:tick], joined[2], tail.qdd])
         self.end = t0 + bridge + float(new.t[-1])
+        return t0 + bridge + new.waypoint_times[-len(waypoints):]
 
     def _rest_until(self, tick: int) -> None:
         """Samples at rest where the plan ended, up to `tick`: a replan after the hover joins a reference that exists."""

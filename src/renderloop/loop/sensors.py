@@ -16,7 +16,8 @@ after t + e/2, when the motion it was exposed over has been flown; until then it
 from __future__ import annotations
 
 import io
-from bisect import bisect_left
+import math
+from bisect import bisect_left, insort
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -161,7 +162,8 @@ class _Renderers:
 
 
 class Camera:
-    """The RGB-D camera on the arm's tip: a frame at every instant k / rate_hz of the planned motion."""
+    """The RGB-D camera on the arm's tip: a frame at every instant k / rate_hz of the planned motion, and at any
+    instant a mission asks for (`trigger`); a mission can also hold the periodic frames back (`pause`)."""
 
     def __init__(self, config: Config, scene: Scene, control_rate_hz: float, rate_hz: float, backend: str, workers: int,
                  executor: str, address: str | None) -> None:
@@ -177,6 +179,8 @@ class Camera:
         """Forget the frames asked for so far (a new trajectory starts a new recording)."""
         self.timestamps: list[float] = []
         self.poses: list[np.ndarray] = []
+        self._periodic = 0  # k of the next periodic instant k / rate_hz
+        self._triggers: list[float] = []  # instants asked for, in order
         self._frames: dict[int, Frame] = {}
         self._flown_t: list[float] = []  # the flown state of every tick, for the motion during exposures
         self._flown: list[list[float]] = []
@@ -190,8 +194,14 @@ class Camera:
             row = stored([now, *snapshot.position, *snapshot.quaternion, *snapshot.joints])
             self._flown_t.append(row[0])
             self._flown.append(row)
-        due = len(self.timestamps) / self.rate_hz
-        if due <= end + 1e-9 and now >= due - 1e-9:
+        periodic = self._periodic / self.rate_hz
+        due_periodic = periodic <= end + 1e-9 and now >= periodic - 1e-9
+        due_trigger = bool(self._triggers) and now >= self._triggers[0] - 1e-9
+        if due_periodic or due_trigger:
+            if due_periodic:
+                self._periodic += 1
+            while self._triggers and now >= self._triggers[0] - 1e-9:
+                self._triggers.pop(0)
             index = len(self.timestamps)
             position, rotation = as_stored(snapshot.camera_position, snapshot.camera_rotation)
             pose = homogeneous(rotation, position)  # as groundtruth.txt will hold it, so batch renders see the same pose
@@ -204,6 +214,14 @@ class Camera:
         for index, (t, exposure) in list(self._exposing.items()):
             if self._flown_t[-1] >= t + exposure / 2:  # the tick the batch render interpolates the shutter's close to
                 self._submit_exposed(index)
+
+    def trigger(self, t: float) -> None:
+        """A frame at the first control tick at or after simulation time `t` (one frame serves instants that meet)."""
+        insort(self._triggers, float(t))
+
+    def pause(self, until: float) -> None:
+        """No periodic frame before simulation time `until`; the periodic instants k / rate_hz resume after it."""
+        self._periodic = max(self._periodic, math.ceil(until * self.rate_hz - 1e-9))
 
     def _submit_exposed(self, index: int) -> None:
         """Ask for a frame whose exposure has been flown (or, asked for before, the flight so far: the camera holds

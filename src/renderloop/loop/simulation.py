@@ -16,6 +16,7 @@ the control tick at or after each), and the planned motion can be replaced mid-f
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,6 +27,7 @@ from renderloop.config import Config
 from renderloop.errors import UserError
 from renderloop.loop.reference import ReferencePlan
 from renderloop.loop.sensors import Camera
+from renderloop.planning.check import check_trajectory
 from renderloop.planning.trajectory import Trajectory
 from renderloop.robot.kinematics import homogeneous
 from renderloop.rundir import files, names
@@ -84,12 +86,18 @@ class Simulation:
         for sensor in self.sensors:
             sensor.restart()
 
-    def replan(self, waypoints: np.ndarray) -> float:
+    def replan(self, waypoints: np.ndarray, check: bool = False) -> np.ndarray:
         """From now on fly through `waypoints` (rows of q* = x, y, z, yaw, q1, q2, q3) instead of the rest of the plan,
-        joined to the current reference without a jump; returns when the new plan ends (simulation seconds)."""
+        joined to the current reference without a jump; returns when the new plan passes each waypoint (simulation
+        seconds; the last is when it ends). With `check`, the new motion must keep the planner's clearance from the
+        greenhouse and stay inside it, or the plan is left as it was and a UserError says where it would hit."""
         plan = self._require_plan()
-        plan.replan(self.tick, waypoints, self.config.planner, self.hold)
-        return plan.end
+        trial = copy.deepcopy(plan) if check else plan
+        times = trial.replan(self.tick, waypoints, self.config.planner, self.hold)
+        if check:
+            check_trajectory(self.model, trial.t[self.tick:], trial.q[self.tick:], tuple(self.scene.room))
+            self.plan = trial
+        return times
 
     def _require_plan(self) -> ReferencePlan:
         if self.plan is None:

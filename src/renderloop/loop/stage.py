@@ -16,6 +16,7 @@ import numpy as np
 
 from renderloop.config import Config
 from renderloop.counting.online import OnlineCounter
+from renderloop.loop.mission import AdaptiveMission
 from renderloop.loop.simulation import Simulation
 from renderloop.perception.detector import Detector
 from renderloop.perception.stage import find_fruit, write_detections
@@ -26,7 +27,7 @@ from renderloop.rundir import files, names
 from renderloop.rundir.models import DetectionFrame
 from renderloop.rundir.stage import Job, Stage
 from renderloop.sim.stage import NEEDS as FLY_NEEDS
-from renderloop.sim.stage import camera_frames, write_flight
+from renderloop.sim.stage import write_flight
 
 
 class OnlinePerception:
@@ -44,16 +45,21 @@ class OnlinePerception:
         found = DetectionFrame(index=frame.index, timestamp=round(float(frame.timestamp), 6),
                                image=names.frame_file(stream, frame.index), detections=detections)
         self.frames.append(found)
-        self.counter.add(found)
+        self.counter.add(found, frame.pose[:3, 3])
         return found
 
 
-def _online(run_dir: Path, config: Config, job: Job) -> None:
+def _fly_in_loop(run_dir: Path, config: Config, job: Job) -> None:
+    """The scan flown with the camera in the loop; with `mission.kind: adaptive`, steered by `AdaptiveMission`."""
+    adaptive = config.mission.kind == "adaptive"
     clear_frames(run_dir)  # the frames of an earlier or interrupted run: these are rendered again as the robot flies
     with Simulation(config, run_dir) as sim:
         sim.follow(sim.scan_trajectory())
-        camera = sim.add_camera(workers=job.workers, executor=job.executor, address=job.address)
-        perception = OnlinePerception(config, OnlineCounter(sim.scene, config.counting, config.seed))
+        rate = config.mission.adaptive.first_pass_rate_hz if adaptive else None
+        camera = sim.add_camera(rate_hz=rate, workers=job.workers, executor=job.executor, address=job.address)
+        counter = OnlineCounter(sim.scene, config.counting, config.seed)
+        perception = OnlinePerception(config, counter)
+        mission = AdaptiveMission(sim, camera, counter, config) if adaptive else None
         written = 0
 
         def take_ready(wait: bool) -> None:
@@ -63,26 +69,35 @@ def _online(run_dir: Path, config: Config, job: Job) -> None:
                 frame = camera.frame(written)
                 write_frame(run_dir, frame.index, frame.files)
                 perception.take(frame)
+                if mission is not None:
+                    mission.take(frame)
                 written += 1
                 if job.progress:
                     job.progress(written, max(len(camera), 1))
 
         while not sim.finished:
             sim.step()
-            if not sim.tick % 10:  # a look every 10 ticks is plenty for frames that come at 5 Hz at most
+            if mission is not None and mission.due():
+                take_ready(wait=True)  # a decision reads every frame taken before it, whenever they render
+                mission.decide()
+            elif not sim.tick % 10:  # a look every 10 ticks is plenty for frames that come at 5 Hz at most
                 take_ready(wait=False)
         take_ready(wait=True)
 
         log = sim.log()
-        frames = camera_frames(log, sim.end, camera.rate_hz)
+        frames = np.searchsorted(log.t, np.array(camera.timestamps) - 1e-9)
         poses = np.array(camera.poses)
+        record = mission.record(camera.timestamps, sim.end) if mission is not None else None
     # the files of the batch stages, in their order, from the same flight and frames
     write_flight(run_dir, config, log, frames)
     files.write_model(run_dir / names.RENDER_RECORD, render_record(run_dir, config, poses))
     finish_render(run_dir, config, log.t[frames])
     depth_dir = names.DEPTH_SENSOR if config.renderer.depth_noise.enabled else names.DEPTH
     write_detections(run_dir, perception.detector, config.detector, depth_dir, perception.frames)
+    if record is not None:
+        files.write_model(run_dir / names.MISSION, record)
 
 
-STAGE = Stage("online", needs=FLY_NEEDS, work=_online, covers=("fly", "render", "detect"))
+STAGE = Stage("online", needs=FLY_NEEDS, work=_fly_in_loop, covers=("fly", "render", "detect"))
 run_online = STAGE.run
+ADAPTIVE_STAGE = Stage("adaptive", needs=FLY_NEEDS, work=_fly_in_loop, covers=("fly", "render", "detect", "mission"))

@@ -60,6 +60,12 @@ def camera_position(plant: Plant, view: View) -> np.ndarray:
     return scan_target(plant) + view.distance * direction + np.array([0.0, 0.0, view.height])
 
 
+def view_at(plant: Plant, position: np.ndarray) -> View:
+    """The view whose camera sits at `position` (world): `camera_position` inverted, whatever the camera looks at."""
+    offset = np.asarray(position, dtype=float) - scan_target(plant)
+    return View(wrap(math.atan2(offset[1], offset[0])), float(offset[2]), math.hypot(offset[0], offset[1]))
+
+
 class Projector:
     """Which views of one plant the robot can fly to from where it is: the projection rule of the module docstring."""
 

@@ -109,7 +109,7 @@ def _turn(start_yaw: float, end_yaw: float, midpoint: np.ndarray) -> float:
     return max(candidates, key=lambda c: math.cos(start_yaw + c / 2) * inward[0] + math.sin(start_yaw + c / 2) * inward[1])
 
 
-def _transit(planner: TransitPlanner, a: Waypoint, b: Waypoint) -> list[Waypoint]:
+def transit(planner: TransitPlanner, a: Waypoint, b: Waypoint) -> list[Waypoint]:
     """Transit waypoints strictly between a and b: routed corners, densified, q* interpolated by distance."""
     corners = [a.dofs[:2], *planner.route(a.dofs, b.dofs), b.dofs[:2]]
     points = [corners[0]]
@@ -160,9 +160,9 @@ def plan_waypoints(scene: Scene, config: Config) -> list[Waypoint]:
                         f"planner.distance: scan waypoints of plant {waypoint.plant} come within "
                         f"{router.radius:.2f} m of a table or wall"
                     )
-            path.extend(_transit(router, path[-1], line[0]))
+            path.extend(transit(router, path[-1], line[0]))
             path.extend(line)
     end = replace(path[0], kind="end")
-    path.extend(_transit(router, path[-1], end))
+    path.extend(transit(router, path[-1], end))
     path.append(end)
     return path

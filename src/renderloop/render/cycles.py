@@ -1,9 +1,10 @@
 """Blender Cycles backend: one greenhouse scene per process, then one path-traced RGB-D frame per pose.
 
 The scene is built once (the object list of `scene/objects.py` as meshes from numpy
-arrays, procedural materials from the table in `scene/materials.py`, randomised
-greenhouse light) and `render()` only moves the camera, so with persistent data Cycles
-keeps its BVH between frames and the per-frame cost is path tracing plus a short sync.
+arrays, copies of a template as linked duplicates of its one mesh, procedural materials
+from the table in `scene/materials.py`, randomised greenhouse light) and `render()` only
+moves the camera, so with persistent data Cycles keeps its BVH between frames and the
+per-frame cost is path tracing plus a short sync.
 `renderer.device` picks the CPU or an NVIDIA GPU (OptiX or CUDA, bpy's own kernels).
 
 Each frame is written as one multi-layer EXR into a private temp directory and read
@@ -45,7 +46,7 @@ from renderloop.render import materials as looks
 from renderloop.render.camera import Intrinsics, to_gl_camera
 from renderloop.render.frame import RenderedFrame
 from renderloop.scene.meshes import Mesh
-from renderloop.scene.model import MAX_PEPPER_ID, Scene
+from renderloop.scene.model import MAX_PEPPER_ID, Environment, Scene
 from renderloop.scene.objects import SceneObject, greenhouse_objects
 
 __all__ = ["CyclesRenderer", "RenderedFrame", "SceneObject", "greenhouse_objects", "VIEW_TRANSFORM"]
@@ -77,6 +78,13 @@ def _bpy_mesh(name: str, mesh: Mesh) -> bpy.types.Mesh:
     return data
 
 
+def _leaf_colors(data: bpy.types.Mesh, vertex_rgb: np.ndarray) -> None:
+    """Per-vertex sRGB colours into the linear attribute the leaf material reads."""
+    linear = looks.srgb_to_linear_array(np.asarray(vertex_rgb, dtype=float).reshape(-1, 3))
+    rgba = np.column_stack([linear, np.ones(len(linear))]).astype(np.float32)
+    data.attributes.new(looks.LEAF_COLOR_ATTRIBUTE, "FLOAT_COLOR", "POINT").data.foreach_set("color", rgba.ravel())
+
+
 def _seconds(timecode: object) -> float:
     """Blender's stamp times ("MM:SS.cc" or "HH:MM:SS.cc") to seconds; NaN when absent."""
     try:
@@ -101,7 +109,7 @@ class CyclesRenderer:
 
     def __init__(self, scene: Scene, config: Config, intrinsics: Intrinsics) -> None:
         rng = np.random.default_rng(np.random.SeedSequence([scene.seed, LIGHTING_STREAM]))
-        self._setup(config, intrinsics, scene.seed, greenhouse_objects(scene), rng, scene.room)
+        self._setup(config, intrinsics, scene.seed, greenhouse_objects(scene), rng, scene.room, scene.environment)
 
     @classmethod
     def from_objects(
@@ -125,7 +133,7 @@ class CyclesRenderer:
     # -- construction -------------------------------------------------------------------------
 
     def _setup(self, config: Config, intrinsics: Intrinsics, seed: int, objects: list[SceneObject],
-               rng: np.random.Generator, room: Sequence[float]) -> None:
+               rng: np.random.Generator, room: Sequence[float], environment: Environment | None = None) -> None:
         global _active
         if not math.isclose(intrinsics.fx, intrinsics.fy, rel_tol=1e-9):
             raise ValueError(f"Cycles camera needs square pixels, got fx={intrinsics.fx} fy={intrinsics.fy}")
@@ -142,7 +150,10 @@ class CyclesRenderer:
             self._scene = bpy.context.scene
             self._configure(config, seed)
             self._camera = self._add_camera(intrinsics)
-            self.lighting = looks.greenhouse_lighting(self._scene, rng, room)
+            if environment is None:
+                self.lighting = looks.greenhouse_lighting(self._scene, rng, room)
+            else:
+                self.lighting = looks.film_lighting(self._scene, environment, room)
             self._add_objects(objects)
         except BaseException:
             shutil.rmtree(self._tmp, ignore_errors=True)
@@ -219,15 +230,17 @@ class CyclesRenderer:
 
     def _add_objects(self, objects: list[SceneObject]) -> None:
         materials = looks.greenhouse_materials()
+        templates: dict[tuple[int, str], bpy.types.Mesh] = {}  # by template (its id) and material: shared by the copies
         for item in objects:  # the one place an object of the list becomes a Blender object
+            if item.instances is not None:
+                self._add_copies(item, materials, templates)
+                continue
             mesh = item.triangles()
             if len(mesh.faces) == 0:
                 continue
             data = _bpy_mesh(item.name, mesh)
             if item.vertex_rgb is not None:
-                linear = looks.srgb_to_linear_array(np.asarray(item.vertex_rgb, dtype=float).reshape(-1, 3))
-                rgba = np.column_stack([linear, np.ones(len(linear))]).astype(np.float32)
-                data.attributes.new(looks.LEAF_COLOR_ATTRIBUTE, "FLOAT_COLOR", "POINT").data.foreach_set("color", rgba.ravel())
+                _leaf_colors(data, item.vertex_rgb)
             if item.smooth:
                 data.shade_smooth()
             if item.material not in materials:
@@ -236,8 +249,34 @@ class CyclesRenderer:
             obj = bpy.data.objects.new(item.name, data)
             obj.pass_index = item.pass_index
             if item.rgb is not None:
-                obj.color = (*looks.srgb_to_linear(item.rgb), 1.0)
+                obj.color = (*looks.srgb_to_linear(item.rgb), item.alpha)
             self._scene.collection.objects.link(obj)
+
+    def _add_copies(self, item: SceneObject, materials: dict[str, bpy.types.Material],
+                    templates: dict[tuple[int, str], bpy.types.Mesh]) -> None:
+        """Each copy an object of its own (its transform, its colour and alpha) on its template's one mesh: linked
+        duplicates, which Cycles instances, so a scene of thousands of leaves holds a few leaf meshes."""
+        copies = item.instances
+        if item.material not in materials:
+            raise ValueError(f"{item.name}: material {item.material!r} has no Cycles recipe")
+        linear = looks.srgb_to_linear_array(np.asarray(copies.rgb, dtype=float).reshape(-1, 3))
+        link = self._scene.collection.objects.link
+        for k, (index, transform) in enumerate(zip(copies.template, copies.transforms)):
+            template = copies.templates[int(index)]
+            key = (id(template), item.material)
+            data = templates.get(key)
+            if data is None:
+                data = templates[key] = _bpy_mesh(f"template_{len(templates)}", template)
+                if copies.template_rgb is not None:
+                    _leaf_colors(data, copies.template_rgb[int(index)])
+                if item.smooth:
+                    data.shade_smooth()
+                data.materials.append(materials[item.material])
+            obj = bpy.data.objects.new(f"{item.name}_{k}", data)
+            obj.matrix_world = Matrix(np.asarray(transform, dtype=float).tolist())
+            obj.pass_index = item.pass_index
+            obj.color = (*map(float, linear[k]), float(copies.alpha[k]))
+            link(obj)
 
     # -- rendering ----------------------------------------------------------------------------
 

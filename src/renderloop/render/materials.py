@@ -12,7 +12,10 @@ shades in linear Rec.709, so constants and per-object colours go through
 Per-instance colours are not baked into one material per object: peppers read
 their colour from the object's `color` (Object Info node) and the merged leaf
 mesh of a plant from a per-vertex attribute `leaf_rgb`, so a plant of 50 leaves
-is one object and one material, which keeps Cycles' scene sync short.
+is one object and one material, which keeps Cycles' scene sync short. The 'pepper'
+style's leaves are instances of a few template meshes, so each copy is an object
+and reads its colour and its dust from the object's `color` (RGB and alpha); its
+fruit read their ripe share from the alpha.
 """
 
 from __future__ import annotations
@@ -24,8 +27,10 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from renderloop.scene.materials import MATERIALS, Material
+from renderloop.scene.materials import DAYLIGHT, MATERIALS, Material
 from renderloop.scene.meshes import frame_from_axis
+from renderloop.scene.model import Environment
+from renderloop.scene.objects import film_tint
 
 LEAF_COLOR_ATTRIBUTE = "leaf_rgb"
 
@@ -99,8 +104,14 @@ def _principled(t: _Tree, color, roughness, look: Material, **inputs) -> bpy.typ
         values.update({"Coat Weight": look.coat, "Coat Roughness": look.coat_roughness})
     if look.subsurface:
         values["Subsurface Weight"] = look.subsurface
+        if look.subsurface_scale is not None:
+            values["Subsurface Scale"] = look.subsurface_scale
+    if look.sheen:
+        values.update({"Sheen Weight": look.sheen, "Sheen Roughness": look.sheen_roughness})
     values.update(inputs)
-    return t.node("ShaderNodeBsdfPrincipled", values).outputs[0]
+    # Burley's diffusion model: over a fruit wall's few millimetres it looks as the random walk does, and costs less
+    props = {"subsurface_method": "BURLEY"} if look.subsurface else {}
+    return t.node("ShaderNodeBsdfPrincipled", values, **props).outputs[0]
 
 
 def _new_material(name: str) -> tuple[bpy.types.Material, _Tree]:
@@ -156,6 +167,101 @@ def pepper_material(name: str) -> bpy.types.Material:
     return material
 
 
+def _vector(t: _Tree, operation: str, a, b) -> bpy.types.NodeSocket:
+    node = t.node("ShaderNodeVectorMath", operation=operation)
+    for index, value in ((0, a), ("Scale" if operation == "SCALE" else 1, b)):
+        if isinstance(value, bpy.types.NodeSocket):
+            t.tree.links.new(value, node.inputs[index])
+        else:
+            node.inputs[index].default_value = value
+    return node.outputs[0]
+
+
+def _per_copy(t: _Tree, info: bpy.types.ShaderNode) -> bpy.types.NodeSocket:
+    """Texture coordinates that differ from copy to copy of one mesh: its own object space, shifted by
+    where the copy stands, so two leaves of one template do not carry the same blotches."""
+    return _vector(t, "ADD", t.node("ShaderNodeTexCoord").outputs["Object"], _vector(t, "SCALE", info.outputs["Location"], 37.0))
+
+
+def _noise_at(t: _Tree, coords, scale: float, detail: float = 2.0) -> bpy.types.NodeSocket:
+    return t.node("ShaderNodeTexNoise", {"Vector": coords, "Scale": scale, "Detail": detail}).outputs["Fac"]
+
+
+def pepper_leaf_material(name: str = "pepper_leaf") -> bpy.types.Material:
+    """A sweet-pepper leaf, one material for every copy of every template. The copy's colour and dust come
+    from its object (Object Info Color and Alpha). From the template's uv (u along the midrib, v across, 0.5
+    on it): the midrib, seven pairs of lateral veins curving toward the tip and a fine network between them,
+    paler than the blade and sunk into it (bump). Blotches and a yellower cast that differ from copy to copy,
+    a paler underside, a grey film where dusty, a waxy coat and grey sheen, and a Translucent share so
+    back-lit leaves glow."""
+    look = MATERIALS[name]
+    material, t = _new_material(name)
+    info = t.node("ShaderNodeObjectInfo")
+    texcoord = t.node("ShaderNodeTexCoord")
+    uv = t.node("ShaderNodeSeparateXYZ", {0: texcoord.outputs["UV"]})
+    u, across = uv.outputs[0], t.math("ABSOLUTE", t.math("SUBTRACT", uv.outputs[1], 0.5))
+    midrib = t.map_range(across, 0.0, 0.022, 1.0, 0.0, smooth=True)
+    phase = t.math("MULTIPLY", t.math("SUBTRACT", u, t.math("MULTIPLY", across, 0.9)), 7.0)
+    lateral = t.map_range(t.math("PINGPONG", phase, 0.5), 0.0, 0.045, 1.0, 0.0, smooth=True)
+    lateral = t.math("MULTIPLY", lateral, t.map_range(across, 0.3, 0.46, 1.0, 0.0))
+    lateral = t.math("MULTIPLY", lateral, t.map_range(u, 0.05, 0.12, 0.0, 1.0))
+    lateral = t.math("MULTIPLY", lateral, t.map_range(u, 0.85, 0.97, 1.0, 0.0))
+    blade_uv = _vector(t, "MULTIPLY", texcoord.outputs["UV"], (1.0, 0.48, 0.0))  # isotropic on the blade
+    cells = t.node("ShaderNodeTexVoronoi", {"Vector": blade_uv, "Scale": 28.0}, feature="DISTANCE_TO_EDGE")
+    network = t.map_range(cells.outputs["Distance"], 0.0, 0.05, look.reticulate, 0.0)
+    veins = t.math("MAXIMUM", t.math("MAXIMUM", midrib, lateral), network)
+
+    coords = _per_copy(t, info)
+    blotch = _noise_at(t, coords, look.variation_scale, 3.0)
+    gain = t.map_range(blotch, 0.3, 0.7, 1.0 - look.variation, 1.0 + look.variation)
+    base = t.mix_rgb(1.0, info.outputs["Color"], t.node("ShaderNodeCombineXYZ", {0: gain, 1: gain, 2: gain}).outputs[0], "MULTIPLY")
+    yellower = t.mix_rgb(1.0, base, (1.25, 1.2, 0.6), "MULTIPLY")
+    base = t.mix_rgb(t.map_range(blotch, 0.5, 0.8, 0.0, 0.3), base, yellower)
+    color = t.mix_rgb(t.math("MULTIPLY", veins, 0.8), base, t.mix_rgb(1.0, base, look.vein_gain, "MULTIPLY"))
+    underside = t.node("ShaderNodeNewGeometry").outputs["Backfacing"]
+    color = t.mix_rgb(underside, color, t.mix_rgb(1.0, color, look.underside_gain, "MULTIPLY"))
+    patchy = t.map_range(_noise_at(t, coords, 2.5 * look.variation_scale), 0.35, 0.65, 0.3 * look.dust, look.dust)
+    dust = t.math("MULTIPLY", info.outputs["Alpha"], patchy)
+    color = t.mix_rgb(dust, color, srgb_to_linear(look.accent_rgb))
+    roughness = t.math("ADD", look.roughness, t.math("MULTIPLY", dust, 0.4))
+    height = t.math("SUBTRACT", t.math("MULTIPLY", _noise_at(t, coords, 6.0 * look.variation_scale), 0.3), veins)
+    bump = t.node("ShaderNodeBump", {"Strength": look.bump, "Height": height})
+    surface = _principled(t, color, roughness, look, Normal=bump.outputs[0])
+    t.output(_translucent(t, look, surface, t.mix_rgb(1.0, color, look.glow_gain, "MULTIPLY")))
+    return material
+
+
+def fruit_material(name: str) -> bpy.types.Material:
+    """The 'pepper' style's fruit skin: the object's colour where the skin has turned and the unripe green
+    where not, in noise patches whose extent is the fruit's ripe share (Object Info Alpha; 1: all its colour),
+    turning from the blossom end (uv v = 1) first, brown where the two meet; slight blotches, a few brown
+    blemishes; glossy wax coat over a little subsurface light, its roughness varying over the skin."""
+    look = MATERIALS[name]
+    material, t = _new_material(name)
+    info = t.node("ShaderNodeObjectInfo")
+    texcoord = t.node("ShaderNodeTexCoord")
+    share = info.outputs["Alpha"]
+    along = t.node("ShaderNodeSeparateXYZ", {0: texcoord.outputs["UV"]}).outputs[1]
+    patches = _noise_at(t, texcoord.outputs["Object"], 2.0 * look.variation_scale, 4.0)
+    turning = t.math("ADD", t.math("MULTIPLY", patches, 0.7), t.math("MULTIPLY", along, 0.3))
+    threshold = t.math("SUBTRACT", 0.85, t.math("MULTIPLY", share, 0.7))
+    turned = t.map_range(turning, t.math("SUBTRACT", threshold, 0.02), t.math("ADD", threshold, 0.02), smooth=True)
+    edge = t.map_range(t.math("ABSOLUTE", t.math("SUBTRACT", turning, threshold)), 0.0, 0.07, 1.0, 0.0)
+    brown = t.math("MULTIPLY", edge, t.math("MULTIPLY", t.math("SUBTRACT", 1.0, share), 4.0, clamp=True))
+    color = t.mix_rgb(turned, srgb_to_linear(look.unripe_rgb), info.outputs["Color"])
+    color = t.mix_rgb(t.math("MULTIPLY", brown, 0.75), color, srgb_to_linear(look.accent_rgb))
+    color = _varied(t, color, look.variation_scale, look.variation)
+    spots = t.node("ShaderNodeTexVoronoi", {"Vector": texcoord.outputs["Object"], "Scale": 220.0})
+    gate = t.map_range(_noise_at(t, texcoord.outputs["Object"], 9.0), 0.72 - look.blemish, 0.74 - look.blemish, 0.0, 1.0)
+    spotted = t.math("MULTIPLY", t.map_range(spots.outputs["Distance"], 0.1, 0.16, 1.0, 0.0), gate)
+    color = t.mix_rgb(t.math("MULTIPLY", spotted, 0.8), color, srgb_to_linear(look.accent_rgb))
+    low, high = look.roughness_range
+    rough = t.map_range(t.noise(look.roughness_scale), 0.3, 0.7, look.roughness * low, look.roughness * high)
+    rough = t.math("ADD", rough, t.math("MULTIPLY", spotted, 0.3))
+    t.output(_principled(t, color, rough, look))
+    return material
+
+
 def flower_material(name: str = "flower") -> bpy.types.Material:
     """Pale petals with a coloured centre: the flower's planar uv puts its centre at (0.5, 0.5)."""
     look = MATERIALS[name]
@@ -179,7 +285,44 @@ def plain_material(name: str) -> bpy.types.Material:
     return material
 
 
-RECIPES = {"plain": plain_material, "leaf": leaf_material, "flower": flower_material, "pepper": pepper_material}
+def _grey(t: _Tree, value: bpy.types.NodeSocket) -> bpy.types.NodeSocket:
+    """A grey colour of the value in every channel."""
+    return t.node("ShaderNodeCombineXYZ", {i: value for i in range(3)}).outputs[0]
+
+
+def film_material(name: str = "film") -> bpy.types.Material:
+    """Greenhouse film: a share of the light goes straight through (Transparent, so the sun and sky reach the crop
+    and cast soft shadows, shadow rays included), a share is scattered (Translucent: the film glows), a little is
+    reflected. How much of each goes from the table's new to its old numbers with the film's age (the object's
+    alpha), its tint is the object's colour, with dirt in blotches. Only camera and glossy rays see the glow: the
+    light it sheds on the crop comes from the soft light under the roof (`film_lighting`), which one sample
+    finds, where a path through the film and on to the sun mostly would not."""
+    look = MATERIALS[name]
+    material, t = _new_material(name)
+    info = t.node("ShaderNodeObjectInfo")
+    age = info.outputs["Alpha"]
+    through = t.map_range(age, 0.0, 1.0, *look.transmission)
+    haze = t.map_range(age, 0.0, 1.0, *look.haze)
+    clear = t.math("MULTIPLY", through, t.math("SUBTRACT", 1.0, haze))
+    tint = _varied(t, info.outputs["Color"], look.variation_scale, look.variation)
+    straight = t.node("ShaderNodeBsdfTransparent", {"Color": _grey(t, clear)})
+    paths = t.node("ShaderNodeLightPath")
+    camera, glossy = paths.outputs["Is Camera Ray"], paths.outputs["Is Glossy Ray"]
+    gain = t.math("ADD", t.math("MULTIPLY", camera, DAYLIGHT.film_glow - 1.0), 1.0)
+    scattered = t.math("MULTIPLY", t.math("MULTIPLY", through, haze), gain)
+    glow_color = t.mix_rgb(1.0, tint, _grey(t, scattered), "MULTIPLY")
+    glow = t.node("ShaderNodeBsdfTranslucent", {"Color": glow_color}).outputs[0]
+    glow = t.node("ShaderNodeMixShader", {0: t.math("MAXIMUM", camera, glossy),
+                                          1: t.node("ShaderNodeBsdfTransparent", {"Color": (0.0, 0.0, 0.0, 1.0)}).outputs[0],
+                                          2: glow}).outputs[0]
+    reflect = t.node("ShaderNodeBsdfDiffuse", {"Color": t.mix_rgb(1.0, tint, (look.reflectance,) * 3, "MULTIPLY")}).outputs[0]
+    surface = t.node("ShaderNodeAddShader", {0: straight.outputs[0], 1: glow}).outputs[0]
+    t.output(t.node("ShaderNodeAddShader", {0: surface, 1: reflect}).outputs[0])
+    return material
+
+
+RECIPES = {"plain": plain_material, "leaf": leaf_material, "flower": flower_material, "pepper": pepper_material,
+           "pepper_leaf": pepper_leaf_material, "fruit": fruit_material, "film": film_material}
 
 
 def greenhouse_materials() -> dict[str, bpy.types.Material]:
@@ -227,6 +370,89 @@ def greenhouse_lighting(scene: bpy.types.Scene, rng: np.random.Generator, room: 
     fill.energy = params["fill_power"] * float(length) * float(width) * 2.0  # W, about fill_power W/m^2 on the floor
     fill_object = bpy.data.objects.new("roof_fill", fill)
     fill_object.location = (0.0, 0.0, float(height) - 0.01)
+    fill_object.visible_camera = False
+    scene.collection.objects.link(fill_object)
+    return params
+
+
+def _air_mass(elevation: float) -> float:
+    """Relative optical path through the atmosphere towards the sun (Kasten and Young, 1989)."""
+    return 1.0 / (math.sin(elevation) + 0.50572 * (math.degrees(elevation) + 6.07995) ** -1.6364)
+
+
+def daylight(environment: Environment) -> dict[str, float]:
+    """The film greenhouse's light from the scene's drawn hour, weather and film, in the units Cycles takes: the
+    sun lamp's strength (W/m², normal to the beam), the clear sky texture's and the overcast sky's strength, and
+    the irradiance of the soft light under the roof (W/m²), all scaled for the exposure (`DAYLIGHT`)."""
+    d = DAYLIGHT
+    film = MATERIALS["film"]
+    sun = np.asarray(environment.sun, dtype=float)
+    elevation = math.asin(float(np.clip(sun[2], -1.0, 1.0)))
+    haze = environment.aerosol - 1.0
+    air_mass = _air_mass(max(elevation, 0.0))
+    beam = d.sun_normal * 0.7 ** (air_mass**0.678) * math.exp(-d.aerosol_beam * haze * air_mass)
+    sky = d.sky_zenith * max(math.sin(elevation), 0.0) ** d.sky_exponent * max(1.0 + d.aerosol_sky * haze, 0.1)
+    cloud = environment.cloud
+    clear_global = beam * max(sun[2], 0.0) + sky
+    outside = (1.0 - cloud) * clear_global + cloud * d.overcast * clear_global
+    through = float(np.interp(environment.film_age, (0.0, 1.0), film.transmission))
+    haze_share = float(np.interp(environment.film_age, (0.0, 1.0), film.haze))
+    exposure = d.inside_irradiance / (through * outside)
+    return {
+        "sun_elevation": elevation,
+        "sun_rotation": math.atan2(sun[0], sun[1]),  # Blender's sky: about the zenith from +y towards +x
+        "sun_strength": exposure * (1.0 - cloud) * beam,
+        "sky_strength": exposure * (1.0 - cloud),
+        "overcast_strength": exposure * cloud * d.overcast * clear_global * 9.0 / (7.0 * math.pi),  # zenith radiance
+        "fill_irradiance": d.inside_irradiance * haze_share,
+        "ground_radiance": exposure * d.ground_albedo * outside / math.pi,
+        "far_radiance": d.far_gain * d.inside_irradiance / math.pi,
+        "exposure": exposure,
+    }
+
+
+def film_lighting(scene: bpy.types.Scene, environment: Environment, room: Sequence[float]) -> dict[str, float]:
+    """The 'film' environment's light: Blender's Multiple Scattering sky (its sun disc off) plus an overcast sky as
+    the cloud cover says, a sun lamp where the sky model's sun is, and a large soft light under the roof for the
+    light the film scatters. Camera rays that leave the greenhouse or the clip range see the film's bright white,
+    as a camera exposed for the crop does. Nothing is drawn here: every number comes from scene.json and the table.
+    Returns the numbers (for logs and the report)."""
+    params = daylight(environment)
+    world = bpy.data.worlds.new("greenhouse_sky")
+    world.cycles.sampling_method, world.cycles.sample_map_resolution = "MANUAL", DAYLIGHT.sky_map_resolution
+    scene.world = world
+    t = _Tree(world.node_tree)
+    sky = t.node("ShaderNodeTexSky", sky_type="MULTIPLE_SCATTERING", sun_disc=False, sun_elevation=params["sun_elevation"],
+                 sun_rotation=params["sun_rotation"], aerosol_density=max(environment.aerosol, 0.0))
+    clear = t.mix_rgb(1.0, sky.outputs["Color"], (params["sky_strength"],) * 3, "MULTIPLY")
+    up = t.node("ShaderNodeSeparateXYZ", {0: t.node("ShaderNodeTexCoord").outputs["Generated"]}).outputs[2]
+    gradient = t.math("DIVIDE", t.math("ADD", 1.0, t.math("MULTIPLY", t.math("MAXIMUM", up, 0.0), 2.0)), 3.0)
+    overcast = t.mix_rgb(1.0, srgb_to_linear(DAYLIGHT.overcast_rgb), _grey(t, t.math("MULTIPLY", gradient, params["overcast_strength"])),
+                         "MULTIPLY")
+    outside = t.mix_rgb(1.0, clear, overcast, "ADD")
+    below = t.math("LESS_THAN", up, 0.0)
+    outside = t.mix_rgb(1.0, outside, _grey(t, t.math("MULTIPLY", below, params["ground_radiance"])), "ADD")
+    far = tuple(params["far_radiance"] * c for c in srgb_to_linear(film_tint(environment.film_age)))
+    camera = t.node("ShaderNodeLightPath").outputs["Is Camera Ray"]
+    color = t.mix_rgb(camera, outside, far)
+    t.output(t.node("ShaderNodeBackground", {"Color": color, "Strength": 1.0}).outputs[0], "ShaderNodeOutputWorld")
+
+    sun = bpy.data.lights.new("sun", "SUN")
+    sun.energy = params["sun_strength"]
+    sun.angle = DAYLIGHT.sun_angle
+    sun_object = bpy.data.objects.new("sun", sun)
+    pose = np.eye(4)
+    pose[:3, :3] = frame_from_axis(np.asarray(environment.sun, dtype=float))  # a sun light shines along its local -z
+    sun_object.matrix_world = Matrix(pose.tolist())
+    scene.collection.objects.link(sun_object)
+
+    length, width, _ = room
+    span_x, span_y = float(length) + 2 * environment.extent, float(width) + 2 * environment.extent
+    fill = bpy.data.lights.new("roof_fill", "AREA")
+    fill.shape, fill.size, fill.size_y = "RECTANGLE", span_x, span_y
+    fill.energy = params["fill_irradiance"] * span_x * span_y * 2.0  # W: about fill_irradiance W/m² on the floor
+    fill_object = bpy.data.objects.new("roof_fill", fill)
+    fill_object.location = (0.0, 0.0, float(environment.gutter_height) - 0.01)
     fill_object.visible_camera = False
     scene.collection.objects.link(fill_object)
     return params

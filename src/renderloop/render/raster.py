@@ -28,18 +28,34 @@ from renderloop.scene.world import shape_geom
 CAMERA = "render_camera"
 
 
+def _mesh_asset(asset: ET.Element, name: str, mesh) -> None:
+    ET.SubElement(asset, "mesh", name=name, inertia="shell", vertex=" ".join(f"{v:.6f}" for v in mesh.vertices.ravel()),
+                  face=" ".join(map(str, mesh.faces.ravel())))
+
+
 def _add_object(asset: ET.Element, world: ET.Element, obj: SceneObject) -> None:
-    """One object of the list as geoms, in its flat display colour: a mesh as a mesh geom named
-    like the object, primitive shapes as one geom each."""
+    """One object of the list as geoms, in its flat display colour: a mesh (or copies of templates, merged)
+    as a mesh geom named like the object, primitive shapes as one geom each. Copies that are their template
+    only turned and moved (the neighbouring plants) share the template's mesh, one geom a copy at its pose."""
     rgba = fmt(*obj.display_rgba())
-    if obj.mesh is None:
+    if obj.shapes:
         for shape in obj.shapes:
             shape_geom(world, shape, rgba=rgba)
         return
-    if len(obj.mesh.faces) == 0:
+    if obj.instances is not None and obj.instances.rigid:
+        copies = obj.instances
+        for index, template in enumerate(copies.templates):
+            _mesh_asset(asset, f"{obj.name}_t{index}", template)
+        for k, (index, transform) in enumerate(zip(copies.template, copies.transforms)):
+            quat = np.zeros(4)
+            mujoco.mju_mat2Quat(quat, np.ascontiguousarray(transform[:3, :3]).ravel())
+            ET.SubElement(world, "geom", name=f"{obj.name}_{k}", type="mesh", mesh=f"{obj.name}_t{int(index)}",
+                          pos=fmt(*transform[:3, 3]), quat=fmt(*quat), rgba=rgba)
         return
-    ET.SubElement(asset, "mesh", name=obj.name, inertia="shell", vertex=" ".join(f"{v:.6f}" for v in obj.mesh.vertices.ravel()),
-                  face=" ".join(map(str, obj.mesh.faces.ravel())))
+    mesh = obj.triangles()
+    if len(mesh.faces) == 0:
+        return
+    _mesh_asset(asset, obj.name, mesh)
     ET.SubElement(world, "geom", name=obj.name, type="mesh", mesh=obj.name, rgba=rgba)
 
 
@@ -77,7 +93,7 @@ class RasterRenderer:
         self.renderer = mujoco.Renderer(self.model, intrinsics.height, intrinsics.width)
         self.pepper_of_geom = np.zeros(self.model.ngeom + 1, dtype=np.uint16)  # index -1 (background) lands on the extra 0
         for obj in filter(lambda obj: obj.pass_index, objects):  # a mesh's geom has the object's name, a shape's its own
-            for name in [obj.name] if obj.mesh is not None else [shape.name for shape in obj.shapes]:
+            for name in [shape.name for shape in obj.shapes] if obj.shapes else [obj.name]:
                 geom = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, name)
                 if geom >= 0:  # -1: an empty mesh, not drawn
                     self.pepper_of_geom[geom] = obj.pass_index

@@ -30,7 +30,7 @@ from renderloop.report import words
 from renderloop.report.plants import legend, plant_cards
 from renderloop.report.view3d import greenhouse_figure, greenhouse_html
 from renderloop.rundir import files, names
-from renderloop.rundir.models import Counts, Harvest
+from renderloop.rundir.models import Counts, Estimate, Harvest, Mission
 from renderloop.rundir.stage import claim
 
 REQUIRED = (names.CONFIG, names.TOP_VIEW, names.FLIGHT_PATHS, names.TRACKING_ERROR, names.CONTACT_SHEET,
@@ -38,8 +38,8 @@ REQUIRED = (names.CONFIG, names.TOP_VIEW, names.FLIGHT_PATHS, names.TRACKING_ERR
 # What else the page is made from (the typed readers name the stage of a missing one); a report newer than all of
 # them, and than REQUIRED, is current.
 READS = (names.SCENE, names.POSES, names.FLIGHT, names.CAMERA_INFO, names.frames_index(names.RGB), names.DETECTIONS,
-         names.TIMINGS)
-SECTIONS = (("yield", "Yield"), ("plants", "Plants"), ("greenhouse", "Greenhouse in 3D"), ("detector", "Detector"),
+         names.TIMINGS, names.MISSION)
+SECTIONS = (("yield", "Yield"), ("mission", "Mission"), ("plants", "Plants"), ("greenhouse", "Greenhouse in 3D"), ("detector", "Detector"),
             ("flight", "Scan flight"), ("frames", "Frames"), ("clusters", "Clusters"), ("harvest", "Harvest plan"),
             ("times", "Stage times"), ("config", "Config"))
 STYLE = """
@@ -110,24 +110,49 @@ def _yield_section(counts: Counts) -> str:
     total = counts.total
     headers = ["Row", "Ripe fruit estimated", "Ripe fruit true", "Error, % of true", "Plants counted exactly",
                "Ripe never in view", f"Ripe only seen too small (under {words.MIN_SIDE} x {words.MIN_SIDE} px)",
-               "Unripe estimated", "Unripe true"]
+               "Unripe estimated", "Unripe true", "Ripe fruit, the count's 90 % range"]
     rows, off = [], []
     for row in counts.rows:
         plants = [plant for plant in counts.plants if plant.row == row.id]
         error = 100 * (row.estimate - row.truth) / row.truth if row.truth else None
         rows.append([f"row {row.id}", row.estimate, row.truth, words.signed_pct(error),
                      words.share(sum(p.estimate == p.truth for p in plants), len(plants)),
-                     _misses(plants, "unseen"), _misses(plants, "too_small"), row.unripe_estimate, row.unripe_truth])
+                     _misses(plants, "unseen"), _misses(plants, "too_small"), row.unripe_estimate, row.unripe_truth,
+                     words.count_range(row.interval)])
         off.append(row.estimate != row.truth)
     rows.append(["all rows", total.estimate, total.truth, words.signed_pct(total.error_pct), words.exact_plants(counts),
                  "n/a" if total.unseen is None else total.unseen, "n/a" if total.too_small is None else total.too_small,
-                 total.unripe_estimate, total.unripe_truth])
+                 total.unripe_estimate, total.unripe_truth, words.count_range(total.interval)])
     off.append(total.estimate != total.truth)
     headline = (f'<p class="headline">Ripe yield: <b>{total.estimate}</b> estimated, <b>{total.truth}</b> true '
                 f"({html.escape(words.signed_pct(total.error_pct))}); plants counted exactly: {html.escape(words.exact_plants(counts))}.</p>")
     return (_table(headers, rows, off, css="yield", total=True) + headline
             + f"<p>{html.escape(words.misses_sentence(counts))}</p>"
             + f"<p>{html.escape(words.tally_sentence(counts.detections))}</p>")
+
+
+def _interval(estimate: Estimate) -> str:
+    return str(estimate.estimate) if estimate.low == estimate.high else f"{estimate.estimate} ({estimate.low}-{estimate.high})"
+
+
+def _mission_section(mission: Mission, counts: Counts) -> str:
+    """What the adaptive mission decided, plant by plant: the count after the first pass, the views it added and why."""
+    truth = {plant.id: plant.truth for plant in counts.plants}
+    headers = ["Plant", "Row", "After the first pass (interval)", "Views added", "Why", "In the end (interval)",
+               "Ripe fruit true"]
+    rows, off = [], []
+    for plant in mission.plants:
+        added = sum(len(r.views) for r in plant.rounds)
+        why = "; ".join(f"{r.why} (at {r.decided_at:.1f} s)" for r in plant.rounds) or (plant.fallback or "settled")
+        rows.append([f"plant {plant.id}", plant.row, _interval(plant.first_pass), added, why, _interval(plant.final),
+                     truth.get(plant.id, "n/a")])
+        off.append(plant.final.estimate != truth.get(plant.id))
+    added = sum(len(r.views) for plant in mission.plants for r in plant.rounds)
+    return (f"<p>A coarse first pass took {mission.first_pass_frames} frames; the mission then looked again at "
+            f"{sum(bool(p.rounds) for p in mission.plants)} of {len(mission.plants)} plants from {added} added views "
+            f"({mission.frames} frames in all, {html.escape(words.seconds(mission.flight_time_s))} of flight). "
+            "The interval is the counter's 90 % range for the plant's ripe count.</p>"
+            + _table(headers, rows, off))
 
 
 def _flight_sentence(flight: dict[str, np.ndarray]) -> str:
@@ -189,7 +214,10 @@ def build_report(run_dir: Path) -> str:
     timings = files.read_timings(run_dir)
     row_plots = [(row.id, run_dir / names.row_plot(row.id)) for row in counts.rows if (run_dir / names.row_plot(row.id)).is_file()]
 
-    figure = greenhouse_figure(scene, counts, detections, flight, times, poses, intrinsics)
+    mission = files.read_mission(run_dir) if config.mission.kind == "adaptive" else None
+    views = {view.frame: f"plant {plant.id}, {r.why}" for plant in mission.plants for r in plant.rounds
+             for view in r.views if view.frame is not None} if mission else None
+    figure = greenhouse_figure(scene, counts, detections, flight, times, poses, intrinsics, views)
     score_list = "".join(f"<dt>{html.escape(k)}</dt><dd>{html.escape(v)}</dd>" for k, v in words.score_lines(scores))
     lead = (f"{len(scene.rows)} row{'s' if len(scene.rows) != 1 else ''}, {len(scene.plants)} plants, "
             f"{sum(p.ripe for p in scene.peppers)} ripe and {sum(not p.ripe for p in scene.peppers)} unripe fruit; "
@@ -197,6 +225,9 @@ def build_report(run_dir: Path) -> str:
             f"({config.renderer.backend} renderer){'; rendered and detected while flying' if config.mission.online else ''}.")
     body = {
         "yield": _yield_section(counts),
+        "mission": (_mission_section(mission, counts) if mission else
+                    "<p>The static scan: every plant seen along the planned path at the camera's rate "
+                    "(<code>renderloop run --mission adaptive</code> looks again where the count is uncertain).</p>"),
         "plants": ("<p>Each plant's ripe and unripe count beside its truth, and the frame that shows it best: the one with the "
                    "most detections of its fruit (then the most of its fruit in view).</p>" + legend()
                    + plant_cards(run_dir, scene, counts, detections)),

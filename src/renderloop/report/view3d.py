@@ -74,7 +74,9 @@ def _frustum(pose: np.ndarray, intrinsics: Intrinsics) -> list[np.ndarray]:
 
 
 def greenhouse_figure(scene: Scene, counts: Counts, detections: Detections, flight: dict[str, np.ndarray],
-                      times: np.ndarray, poses: np.ndarray, intrinsics: Intrinsics) -> go.Figure:
+                      times: np.ndarray, poses: np.ndarray, intrinsics: Intrinsics,
+                      views: dict[int, str] | None = None) -> go.Figure:
+    """`views`: frames an adaptive mission added (frame index -> why), drawn as frusta of their own."""
     traces: list = []
     traces.append(_boxes([(row.table.center, row.table.size) for row in scene.rows], "tables", "#b08d57",
                          [f"table of row {row.id}" for row in scene.rows]))
@@ -109,6 +111,16 @@ def greenhouse_figure(scene: Scene, counts: Counts, detections: Detections, flig
     traces.append(go.Scatter3d(**_segments([segment for i in shown for segment in _frustum(poses[i], intrinsics)]),
                                mode="lines", line=dict(color="#6a3d9a", width=2), name=f"camera view ({len(shown)} frames)",
                                hoverinfo="skip"))
+
+    if views:
+        added = sorted(views)
+        traces.append(go.Scatter3d(**_segments([segment for i in added for segment in _frustum(poses[i], intrinsics)]),
+                                   mode="lines", line=dict(color="#e67e22", width=3),
+                                   name=f"views the mission added ({len(added)})", hoverinfo="skip"))
+        traces.append(go.Scatter3d(
+            x=_round(poses[added, 0, 3]), y=_round(poses[added, 1, 3]), z=_round(poses[added, 2, 3]),
+            text=[f"frame {i}: {views[i]}" for i in added], mode="markers", marker=dict(size=4, color="#e67e22"),
+            name="added view positions", hovertemplate="%{text}<extra></extra>", showlegend=False))
 
     for label in ("ripe", "unripe"):
         points = [(frame.index, d) for frame in detections.frames for d in frame.detections

@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from renderloop.perception.scoring import MIN_SIDE
-from renderloop.rundir.models import Counts, DetectionScores, DetectionTally
+from renderloop.rundir.models import CountInterval, Counts, DetectionScores, DetectionTally
 
 # What each stage does, in the order `renderloop run` runs them.
 STAGE_WORDS = {
@@ -45,6 +45,13 @@ def seconds(value: float) -> str:
         return f"{value:.1f} s"
     minutes, rest = divmod(round(value), 60)
     return f"{minutes} min {rest:02d} s" if minutes < 60 else f"{minutes // 60} h {minutes % 60:02d} min"
+
+
+def count_range(interval: CountInterval | None) -> str:
+    """A count's interval as people write a range: '7-9', or the count alone when it is sure."""
+    if interval is None:
+        return "n/a"
+    return str(interval.low) if interval.low == interval.high else f"{interval.low}-{interval.high}"
 
 
 def exact_plants(counts: Counts) -> str:

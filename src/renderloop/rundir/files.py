@@ -26,7 +26,7 @@ from renderloop.planning.waypoints import Waypoint
 from renderloop.render.camera import Intrinsics, camera_info_yaml, parse_camera_info
 from renderloop.robot.kinematics import homogeneous
 from renderloop.rundir import names
-from renderloop.rundir.models import Counts, Detections, DetectionScores, Harvest, RenderRecord, Timings
+from renderloop.rundir.models import Counts, Detections, DetectionScores, Harvest, Mission, RenderRecord, Timings
 from renderloop.scene.model import Scene, load_scene
 
 Model = TypeVar("Model", bound=BaseModel)
@@ -104,6 +104,13 @@ def read_counts(run_dir: Path) -> Counts:
     if not path.is_file():
         raise _missing(run_dir, names.COUNTS)
     return read_model(path, Counts)
+
+
+def read_mission(run_dir: Path) -> Mission:
+    path = Path(run_dir) / names.MISSION
+    if not path.is_file():
+        raise UserError(f"{run_dir}: missing {names.MISSION} (an adaptive mission writes it: `renderloop run --mission adaptive`)")
+    return read_model(path, Mission)
 
 
 def read_harvest(run_dir: Path) -> Harvest:

@@ -71,6 +71,21 @@ class DetectionScores(FileModel):
     position_error_p90_m: Finite | None
 
 
+class CountInterval(FileModel):
+    """The ripe count's interval: the true count lies in [low, high] with probability `level` under the counting's
+    model of its uncertainty (renderloop.counting.uncertainty)."""
+
+    low: Count
+    high: Count
+    level: Unit
+
+    @model_validator(mode="after")
+    def _ordered(self) -> CountInterval:
+        if self.low > self.high:
+            raise ValueError(f"low {self.low} is larger than high {self.high}")
+        return self
+
+
 class PlantCount(FileModel):
     id: int
     row: int
@@ -82,6 +97,9 @@ class PlantCount(FileModel):
     unripe_clusters: list[Point]
     unseen: Count | None = None  # ripe fruit of the plant no frame showed (from the masks; null without masks)
     too_small: Count | None = None  # ripe fruit only ever seen smaller than the detector's findable size
+    interval: CountInterval | None = None  # where the true ripe count lies (null in files written before intervals)
+    weak_clusters: Count | None = None  # counted ripe fruit whose cluster is weakly supported or seen from one side
+    unseen_fraction: Unit | None = None  # share of the canopy box no depth frame has seen (null: not known)
 
 
 class RowCount(FileModel):
@@ -94,6 +112,7 @@ class RowCount(FileModel):
     unripe_detections: Count
     removed: Count  # false positives dropped
     unripe_removed: Count
+    interval: CountInterval | None = None  # where the row's true ripe count lies: its plants' distributions convolved
 
 
 class TotalCount(FileModel):
@@ -106,6 +125,7 @@ class TotalCount(FileModel):
     unseen: Count | None = None  # ripe fruit no frame showed: the scan's misses, not the detector's
     too_small: Count | None = None  # ripe fruit seen, but never at the detector's findable size
     seen_error_pct: Finite | None = None  # 100 (estimate - seen) / seen, seen = truth - unseen - too_small
+    interval: CountInterval | None = None  # where the true ripe total lies: the rows' distributions convolved
 
 
 class DetectionTally(FileModel):
@@ -163,3 +183,53 @@ class RenderRecord(FileModel):
     seed: int
     camera: dict[str, Any]
     renderer: dict[str, Any]
+
+
+class Estimate(FileModel):
+    """A plant's ripe count as the mission saw it at a decision: the estimate and its interval."""
+
+    estimate: Count
+    low: Count
+    high: Count
+    weak: Count  # counted fruit whose cluster is weakly supported
+    unseen: Unit | None  # share of the canopy box no depth frame has seen
+
+
+class MissionView(FileModel):
+    """A view flown to: where about the plant (viewpoints.View), when, and what it was expected to show."""
+
+    azimuth: Finite  # rad, counter-clockwise from world +x, about the plant's axis
+    height: Finite  # m above the canopy's middle
+    distance: Finite  # m, camera to the plant's axis, horizontally
+    time: Finite  # simulation s when the camera was asked for the frame
+    frame: Count | None  # its frame's index; null when the mission ended before it was taken
+    unknown_cells: Count  # cells of the canopy it was expected to see for the first time
+    uncertain_fruit: Count  # weakly supported fruit it was expected to see
+
+
+class MissionRound(FileModel):
+    decided_at: Finite  # simulation s
+    why: str
+    before: Estimate
+    after: Estimate | None  # null when the mission ended before the round's frames were in
+    views: list[MissionView]
+
+
+class MissionPlant(FileModel):
+    id: int
+    row: int
+    first_pass: Estimate
+    final: Estimate
+    rounds: list[MissionRound]
+    fallback: str | None  # why the plant kept the first pass alone (no reachable view, no budget, ...)
+
+
+class Mission(FileModel):
+    """`mission.json`: what the adaptive mission decided, plant by plant (`renderloop run --mission adaptive`)."""
+
+    kind: Literal["adaptive"]
+    settings: dict[str, Any]  # the mission config
+    frames: Count  # frames rendered in all
+    first_pass_frames: Count
+    flight_time_s: Finite  # s, the whole mission (the hover at its end not included)
+    plants: list[MissionPlant]

@@ -35,6 +35,8 @@ DETECTION_SCORES = "detection_scores.json"
 DETECTION_SHEET = "detections.png"
 DETECT_CACHE = ".detections.cache.jsonl"  # frames detected so far, for a resumed detect
 
+MISSION = "mission.json"  # what the adaptive mission decided
+
 COUNTS = "counts.json"
 HARVEST = "harvest.json"
 COUNT_PLOTS = "counts"
@@ -67,6 +69,7 @@ OUTPUTS: dict[str, tuple[str, ...]] = {
     "fly": (FLIGHT, POSES, FLIGHT_PATHS, TRACKING_ERROR),
     "render": (frames_index(RGB), frames_index(DEPTH), CAMERA_INFO, CONTACT_SHEET),
     "detect": (DETECTIONS, DETECTION_SCORES, DETECTION_SHEET),
+    "mission": (MISSION,),
     "count": (COUNTS, HARVEST),
 }
 

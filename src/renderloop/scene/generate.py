@@ -11,8 +11,10 @@ import numpy as np
 
 from renderloop.config import Config
 from renderloop.errors import UserError
+from renderloop.scene.environment import draw_environment
 from renderloop.scene.layout import table_slots
 from renderloop.scene.model import MAX_PEPPER_ID, Row, Scene, Table, Workstation
+from renderloop.scene.pepper_plant import grow_pepper_plant
 from renderloop.scene.plant import PepperFitError, grow_plant
 
 
@@ -37,13 +39,14 @@ def generate_scene(config: Config) -> Scene:
     if sum(left + right for left, right in per_side.values()) > MAX_PEPPER_ID:
         raise UserError(f"plants.peppers.per_side: more than {MAX_PEPPER_ID} peppers in one scene")
 
+    grow = grow_pepper_plant if plants_config.style == "pepper" else grow_plant
     rows, plants, peppers = [], [], []
     for slot in slots:
         plant_ids = []
         for position in slot.plant_positions:
             plant_id = len(plants)
             try:
-                plant, fruit = grow_plant(
+                plant, fruit = grow(
                     np.random.default_rng(plant_seeds[plant_id]), plants_config, plant_id, slot.row, position,
                     per_side.get(plant_id, (0, 0)), first_pepper_id=len(peppers) + 1,
                 )
@@ -58,6 +61,7 @@ def generate_scene(config: Config) -> Scene:
         rows.append(Row(id=slot.row, plants=plant_ids, table=Table(center=slot.center, size=slot.size)))
 
     station_size = greenhouse.workstation_size
+    film = greenhouse.environment.kind == "film"
     return Scene(
         seed=config.seed,
         room=greenhouse.size,
@@ -65,4 +69,5 @@ def generate_scene(config: Config) -> Scene:
         rows=rows,
         plants=plants,
         peppers=peppers,
+        environment=draw_environment(config, rows, plants) if film else None,
     )

@@ -15,7 +15,8 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["Mesh", "merge", "frame_from_axis", "tube", "pepper", "leaf", "flower", "pot", "box"]
+__all__ = ["Mesh", "merge", "frame_from_axis", "tube", "pepper", "leaf", "LeafShape", "pepper_leaf", "calyx", "flower",
+           "pot", "box"]
 
 
 @dataclass(frozen=True)
@@ -38,7 +39,8 @@ class Mesh:
             object.__setattr__(self, "uv", uv)
 
     def transformed(self, rotation: np.ndarray, translation: np.ndarray) -> Mesh:
-        """Rigid transform v' = R v + t (uv and faces unchanged)."""
+        """Transform v' = R v + t (uv and faces unchanged): rigid for a rotation R; a rotation times a
+        positive diagonal scale keeps the winding, so the normals stay outward."""
         r = np.asarray(rotation, dtype=np.float64).reshape(3, 3)
         t = np.asarray(translation, dtype=np.float64).reshape(3)
         return Mesh(self.vertices @ r.T + t, self.faces, self.uv)
@@ -281,6 +283,137 @@ def leaf(base: ArrayLike, direction: ArrayLike, up: ArrayLike, length: float, wi
     fan = np.stack([last + j, np.full_like(j, tip), last + j + 1], axis=-1)
     faces = np.concatenate([_grid_faces(rows, nc, False)[:, [0, 2, 1]], fan])  # rows run along d, cols along w
     return Mesh(verts, faces, uv)
+
+
+@dataclass(frozen=True)
+class LeafShape:
+    """The shape of a sweet-pepper leaf template (`pepper_leaf`): angles in radians, amplitudes as fractions
+    of the blade's length; `hole` and `bite` (None: a whole leaf) are damage, in blade coordinates
+    (t along the midrib 0..1, y across over the half-width -1..1)."""
+
+    droop: float  # the midrib's bend over the blade, tip down
+    rise: float  # the petiole's angle above the blade's base plane
+    fold: float  # both halves lifted about the midrib (a V)
+    curl: float  # the margins rolled down, at the margin
+    twist: float  # the cross-section turned about the midrib at the tip
+    wrinkle: float  # puckering between the lateral veins
+    wave: float  # undulation of the margin
+    phase: float  # where along the blade the puckers and waves sit, 0..1
+    hole: tuple[float, float, float] | None = None  # (t, y, radius in t units): an eaten hole
+    bite: tuple[float, float, float] | None = None  # (t from, t to, depth over the half-width) on the +y margin
+
+
+PEPPER_LEAF_WIDTH = 0.48  # blade width over length of every template; a leaf's own ratio scales it across
+
+
+def pepper_leaf(shape: LeafShape, petiole: float = 0.25, stations: int = 18, half: int = 4) -> Mesh:
+    """Sweet-pepper leaf template: blade length 1 along local +x (beyond a petiole of length `petiole` that
+    starts at the origin), width PEPPER_LEAF_WIDTH across +y, its upper side facing +z, single-sided, faces
+    CCW seen from the upper side. Scaled (length, width / PEPPER_LEAF_WIDTH, length) and placed, it becomes
+    every leaf of the style, so a plant's hundred leaves share a few meshes (instances in Cycles).
+
+    Ovate-lanceolate outline (widest at 0.38 of the blade, a cuneate base running into the petiole,
+    acuminate tip), the midrib a vertex line; the midrib bends down by `droop` toward the tip, the halves
+    fold up and the margins curl down, the blade puckers between seven pairs of lateral veins and its
+    margin waves. uv: u = 0 at the blade's base to 1 at the tip (0 on the petiole), v = 0.5 + y / width
+    (0.5 on the midrib), as `leaf` has them, so one vein texture serves both."""
+    if stations < 4 or half < 1 or petiole < 0:
+        raise ValueError("need stations >= 4, half >= 1, petiole >= 0")
+    petiole_stations = 3 if petiole > 0 else 0
+    ell = np.r_[np.linspace(0.0, petiole, petiole_stations, endpoint=False), petiole + np.arange(stations) / stations]
+    t = np.clip(ell - petiole, 0.0, 1.0)  # blade fraction; 0 on the petiole
+    g = t * (1.0 - t) ** 1.6  # widest at 0.38 of the blade
+    stalk = 0.035  # the petiole's half-width over the blade's width
+    hw = PEPPER_LEAF_WIDTH * np.maximum(0.5 * g / g.max(), stalk)
+    angle = np.where(ell <= petiole, shape.rise, shape.rise * (1.0 - _smoothstep(t / 0.3)) - shape.droop * t**1.5)
+    ell_all = np.r_[ell, petiole + 1.0]
+    angle_all = np.r_[angle, -shape.droop]
+    steps = np.diff(ell_all)
+    mid_angle = 0.5 * (angle_all[1:] + angle_all[:-1])
+    mid = np.zeros((len(ell_all), 3))
+    mid[1:, 0] = np.cumsum(steps * np.cos(mid_angle))
+    mid[1:, 2] = np.cumsum(steps * np.sin(mid_angle))
+    normal = np.stack([-np.sin(angle_all), np.zeros_like(angle_all), np.cos(angle_all)], axis=-1)
+    across = (np.arange(2 * half + 1) - half) / half  # -1..1 over the half-width
+    y = hw[:, None] * across[None, :]
+    a = np.abs(across)[None, :]
+    blade = (t > 0)[:, None]
+    tt = t[:, None]
+    lift = np.where(blade, np.abs(y) * np.tan(shape.fold) - shape.curl * a**2, 0.0)
+    pucker = shape.wrinkle * np.sin(np.pi * a) * np.sin(2 * np.pi * (7.0 * tt + 1.6 * a + shape.phase))
+    ripple = shape.wave * a**3 * np.sin(2 * np.pi * (4.0 * tt + shape.phase) + 2.0 * np.sign(across)[None, :])
+    lift = lift + np.where(blade, (pucker + ripple) * np.sin(np.pi * tt) ** 0.5, 0.0)
+    tau = shape.twist * tt
+    lat = y * np.cos(tau) - lift * np.sin(tau)
+    up = y * np.sin(tau) + lift * np.cos(tau)
+    rows = len(ell)
+    grid = mid[:rows, None, :] + lat[..., None] * np.array([0.0, 1.0, 0.0]) + up[..., None] * normal[:rows, None, :]
+    nc = 2 * half + 1
+    verts = np.concatenate([grid.reshape(-1, 3), mid[-1:]])
+    grid_uv = np.stack(np.broadcast_arrays(t[:, None], 0.5 + y / PEPPER_LEAF_WIDTH), axis=-1).reshape(-1, 2)
+    uv = np.clip(np.concatenate([grid_uv, [[1.0, 0.5]]]), 0.0, 1.0)
+    j = np.arange(nc - 1)
+    last, tip = (rows - 1) * nc, rows * nc
+    fan = np.stack([last + j, np.full_like(j, tip), last + j + 1], axis=-1)
+    faces = np.concatenate([_grid_faces(rows, nc, False)[:, [0, 2, 1]], fan])
+    keep = np.ones(len(faces), dtype=bool)
+    if shape.hole is not None or shape.bite is not None:
+        station = np.r_[t, 1.0][faces // nc].mean(axis=1)  # the tip vertex is row `rows`
+        side = np.r_[np.broadcast_to(across, (rows, nc)).ravel(), 0.0][faces].mean(axis=1)
+        if shape.hole is not None:
+            ht, hy, hr = shape.hole
+            keep &= np.hypot((station - ht) / hr, (side - hy) * 0.5 * PEPPER_LEAF_WIDTH / hr) > 1.0
+        if shape.bite is not None:
+            lo, hi, depth = shape.bite
+            inside = (station > lo) & (station < hi)
+            arc = np.sin(np.pi * np.clip((station - lo) / (hi - lo), 0.0, 1.0))
+            keep &= ~(inside & (side > 1.0 - depth * arc))
+    return Mesh(verts, faces[keep], uv)
+
+
+def calyx(center: ArrayLike, axis: ArrayLike, length: float, width: float, lobes: int, lobe_depth: float,
+          twist: float, sepals: int, reach: float, bound: float, lift: float = 0.0015, rings: int = 4) -> Mesh:
+    """The calyx of the `pepper` of these parameters: a star of `sepals` pointed sepals reaching `reach` from
+    the axis, lying `lift` above the fruit's skin around its stalk end (single-sided, facing away from the
+    fruit). Vertices farther than `bound` from `center` (the fruit's bounding radius) are pulled in to it,
+    so the calyx stays inside the fruit's bounding sphere."""
+    if sepals < 3 or reach <= 0 or rings < 1:
+        raise ValueError("need sepals >= 3, reach > 0, rings >= 1")
+    segments = 32
+    local = pepper(np.zeros(3), (0.0, 0.0, 1.0), length, width, lobes, lobe_depth, twist=0.0, segments=segments).vertices
+    ring_count = (len(local) - 2) // segments
+    columns = local[1:-1].reshape(ring_count, segments, 3)[: ring_count // 2]  # the upper half, top ring first
+    radial = np.hypot(columns[..., 0], columns[..., 1])
+    spokes = 4 * sepals
+    phi = 2.0 * np.pi * np.arange(spokes) / spokes
+    tooth = np.abs(np.cos(0.5 * sepals * phi)) ** 4  # 1 at a sepal's tip, 0 between two
+    outline = reach * (0.45 + 0.55 * tooth)
+    nearest = np.rint(phi / (2.0 * np.pi) * segments).astype(int) % segments
+    fraction = np.arange(1, rings + 1) / rings
+    r = outline[None, :] * fraction[:, None]  # (rings, spokes)
+    z = np.empty_like(r)
+    for k in range(spokes):
+        profile_r = np.r_[0.0, radial[:, nearest[k]]]
+        profile_z = np.r_[local[0, 2], columns[:, nearest[k], 2]]
+        widest = int(np.argmax(profile_r))
+        z[:, k] = np.interp(r[:, k], profile_r[: widest + 1], profile_z[: widest + 1])
+    pts = np.stack([r * np.cos(phi), r * np.sin(phi), z - lift], axis=-1).reshape(-1, 3)
+    verts_local = np.concatenate([[[0.0, 0.0, local[0, 2] - lift]], pts])
+    rot = frame_from_axis(np.asarray(axis, dtype=np.float64), twist)
+    c = np.asarray(center, dtype=np.float64).reshape(3)
+    verts = verts_local @ rot.T
+    distance = np.linalg.norm(verts, axis=1)
+    verts *= np.minimum(1.0, bound / np.maximum(distance, 1e-12))[:, None]
+    k = np.arange(spokes)
+    k1 = (k + 1) % spokes
+    centre_fan = np.stack([np.zeros_like(k), 1 + k1, 1 + k], axis=-1)  # seen from -z (away from the fruit)
+    faces = [centre_fan]
+    for ring in range(rings - 1):
+        a, b = 1 + ring * spokes, 1 + (ring + 1) * spokes
+        faces.append(np.stack([a + k, a + k1, b + k1], axis=-1))
+        faces.append(np.stack([a + k, b + k1, b + k], axis=-1))
+    uv = np.clip(0.5 + 0.5 * verts_local[:, :2] / reach, 0.0, 1.0)
+    return Mesh(verts + c, np.concatenate(faces), uv)
 
 
 def flower(center: ArrayLike, normal: ArrayLike, radius: float, petals: int = 5) -> Mesh:

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from renderloop.errors import UserError, problem
 
@@ -26,6 +26,12 @@ Side = Literal["left", "right"]
 
 class Frozen(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def WhenSet(description: str | None = None, **bounds: Any) -> Any:
+    """A field only some plants have (the 'pepper' style's): None by default, and then left out of the file,
+    so a 'simple' scene's bytes stay what they were before the field existed."""
+    return Field(None, exclude_if=lambda value: value is None, description=description, **bounds)
 
 
 class Box(Frozen):
@@ -59,15 +65,27 @@ class Tube(Frozen):
 
 
 class Leaf(Frozen):
+    """A blade of its own shape (`curvature`, `fold`, `twist`: the 'simple' style) or a scaled copy of a
+    template (`template`: the 'pepper' style, scene/plant_meshes.LEAF_SHAPES), from `base` along `direction`."""
+
     base: Vec3
     direction: Vec3
     up: Vec3
     length: float
     width: float
-    curvature: float
-    fold: float
-    twist: float
+    curvature: float | None = WhenSet("Bend of the midrib, 1/m.")
+    fold: float | None = WhenSet("Both halves lifted about the midrib, rad.")
+    twist: float | None = WhenSet("Turn of the cross-section about the midrib at the tip, rad.")
+    template: int | None = WhenSet("Index of the leaf template this blade is a copy of.", ge=0)
+    dust: float | None = WhenSet("Cover of a grey film of dust or residue, 0-1.", ge=0, le=1)
     rgb: Vec3
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> Leaf:
+        own = [value is not None for value in (self.curvature, self.fold, self.twist)]
+        if not (all(own) if self.template is None else not any(own)):
+            raise ValueError("a leaf has either its own curvature, fold and twist or a template, not both nor neither")
+        return self
 
 
 class Flower(Frozen):
@@ -89,6 +107,11 @@ class Plant(Frozen):
     flowers: list[Flower]
 
 
+class Calyx(Frozen):
+    sepals: int = Field(ge=3)
+    reach: float = Field(gt=0, description="How far its sepals reach from the fruit's axis, m.")
+
+
 class Pepper(Frozen):
     id: int = Field(ge=1, le=MAX_PEPPER_ID)
     plant: int
@@ -105,11 +128,58 @@ class Pepper(Frozen):
     axis: Vec3 = Field(description="Unit vector from the stalk end to the blossom end.")
     twist: float
     peduncle: Tube = Field(description="Stalk from the stem (first point) to the top of the fruit (last point).")
+    calyx: Calyx | None = WhenSet("The calyx around the stalk end ('pepper' style).")
+    ripeness: float | None = WhenSet(
+        "Share of the skin in the fruit's colour; the rest is still green, with brown where the two meet (the "
+        "breaker stage; 'pepper' style). Ripe or not is `color`'s.", ge=0, le=1)
 
 
 class Workstation(Frozen):
     center: Vec3
     size: Vec3
+
+
+class Prototype(Frozen):
+    """A plant of the neighbouring rows, grown once (its pot's base at x = y = 0) and stood in many places. Its fruit
+    are drawn but never counted: they are in no mask (instance id 0) and not in the scene's `peppers`."""
+
+    plant: Plant
+    fruit: list[Pepper]
+
+
+class BackgroundPlant(Frozen):
+    """One plant of the neighbouring rows: a prototype turned by `yaw` about its axis and moved to `position`."""
+
+    prototype: int = Field(ge=0)
+    position: Vec3 = Field(description="Centre of the pot's base.")
+    yaw: float = Field(description="Turn about the plant's vertical axis, rad.")
+
+
+class Trap(Frozen):
+    """A yellow sticky insect trap hanging above the crop, facing along `normal` (horizontal)."""
+
+    center: Vec3
+    normal: Vec3
+
+
+class Environment(Frozen):
+    """The 'film' greenhouse round the room (config `greenhouse.environment`): what was drawn for this scene, and
+    what the views build its structure from (scene/objects.py); the room is one compartment of it."""
+
+    kind: Literal["film"]
+    hour: float = Field(description="Local solar time, h.")
+    day_of_year: int
+    sun: Vec3 = Field(description="Unit vector from the greenhouse to the sun, world frame (ENU).")
+    cloud: float = Field(ge=0, le=1, description="Cloud cover, 0-1.")
+    aerosol: float = Field(ge=0, description="Aerosol density of the sky model.")
+    film_age: float = Field(ge=0, le=1, description="Age of the film, 0 (new) to 1 (old).")
+    extent: float = Field(ge=0, description="How far the greenhouse goes on beyond the room, m.")
+    gutter_height: float = Field(gt=0, description="Height of the gutters under the film roof, m.")
+    wire_height: float = Field(gt=0, description="Height of the crop wire over every row, m.")
+    tables: list[Table] = Field(description="The benches (or slabs) of the neighbouring rows.")
+    prototypes: list[Prototype]
+    plants: list[BackgroundPlant]
+    traps: list[Trap]
 
 
 class Scene(Frozen):
@@ -120,6 +190,7 @@ class Scene(Frozen):
     rows: list[Row]
     plants: list[Plant]
     peppers: list[Pepper]
+    environment: Environment | None = WhenSet("The film greenhouse round the room; none: plain walls.")
 
     def plant(self, plant_id: int) -> Plant:
         return self.plants[plant_id]

@@ -1,18 +1,21 @@
 """The greenhouse as a list of objects, the one description every view draws.
 
 Kubric's pattern: one scene, and each simulator or renderer a view of it. An object
-has a name, either a triangle mesh or primitive shapes (boxes, cylinders), a material
-name of the table in `scene/materials.py`, and for a pepper its instance id. Cycles
-(`render/cycles.py`) draws each object's triangles, the raster renderer
-(`render/raster.py`) makes a MuJoCo geom of each mesh or shape, and the physics world
-(`scene/world.py`) reads the same static shapes next to its own simple collision
-volumes for the plants. Each view translates every kind of object in one function.
+has a name, either a triangle mesh, copies of template meshes (the 'pepper' style's
+leaves) or primitive shapes (boxes, cylinders), a material name of the table in
+`scene/materials.py`, and for a pepper its instance id. Cycles (`render/cycles.py`) draws
+each object's triangles, and each copy of a template as an instance of one shared mesh;
+the raster renderer (`render/raster.py`) makes a MuJoCo geom of each mesh, of the copies
+merged, or of each shape; and the physics world (`scene/world.py`) reads the same static
+shapes next to its own simple collision volumes for the plants. Each view translates
+every kind of object in one function.
 
 Numpy only (no bpy, no mujoco), so any process can build the list.
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -21,17 +24,34 @@ import numpy as np
 from renderloop.scene import meshes
 from renderloop.scene.materials import MATERIALS, RGBA
 from renderloop.scene.meshes import Mesh
-from renderloop.scene.model import MAX_PEPPER_ID, Scene
-from renderloop.scene.plant_meshes import plant_meshes
+from renderloop.scene.model import MAX_PEPPER_ID, Environment, Scene
+from renderloop.scene.plant_meshes import LEAF_SHAPES, PETIOLE, leaf_template, leaf_transform, plant_meshes
 
-__all__ = ["Box", "Cylinder", "SceneObject", "greenhouse_objects", "collision_objects", "static_objects",
-           "wall_boxes", "table_boxes", "WALL_THICKNESS", "WORKSTATION_COLUMN"]
+__all__ = ["Box", "Cylinder", "Instances", "SceneObject", "greenhouse_objects", "collision_objects", "static_objects",
+           "environment_objects", "wall_boxes", "table_boxes", "WALL_THICKNESS", "WORKSTATION_COLUMN"]
 
 TABLE_TOP_THICKNESS = 0.04
 TABLE_LEG = 0.04
 WALL_THICKNESS = 0.05
 WORKSTATION_COLUMN = (0.6, 0.05)  # height above the workstation table and radius of its manipulator, m
 COLUMN_SIDES = 24  # facets of a cylinder's triangle mesh
+# The 'film' greenhouse's structure: a Venlo house, its roof in spans between gutters that run along the rows
+ROOF_SPAN = 4.0  # m between gutters
+RIDGE_RISE = 0.8  # m: a span's ridge above its gutters (a 22° roof over 2 m)
+GUTTER = (0.2, 0.15)  # m: a gutter's width and depth
+POST = 0.08  # m: side of a square post under the gutters
+TRUSS_SPACING = 4.5  # m between the trusses (and posts) along the gutters
+TRUSS_DEPTH = 0.5  # m: a lattice truss under the gutters, its chords this far apart
+TRUSS_BAY = 0.5  # m between a truss's verticals, a diagonal in each bay
+CHORD = 0.04  # m: side of a truss chord; its verticals and diagonals are rods of half this radius
+WIRE_RADIUS = 0.0025  # m: the crop wire over each row
+STRING_RADIUS = 0.001  # m: the string from the wire down to each plant
+TRAP_SIZE = (0.25, 0.1, 0.002)  # m: a sticky trap's width, height and thickness
+# The neighbouring plants stand 1.6 m or more from any camera, where a leaf spans a few dozen pixels: their leaves
+# are drawn with a tenth of the facets of the scanned plants' and their fruit with a quarter, or a crop of them is
+# tens of millions of triangles (seconds a frame for the raster view's software OpenGL).
+NEIGHBOUR_LEAF = (6, 1)  # a leaf template's stations along the blade and vertices across each half (scanned: 18, 4)
+NEIGHBOUR_FRUIT = (8, 16)  # a fruit's rings and segments (scanned: 16, 32)
 
 
 @dataclass(frozen=True)
@@ -63,11 +83,37 @@ Shape = Box | Cylinder
 
 
 @dataclass(frozen=True)
+class Instances:
+    """Copies of template meshes: copy k is `templates[template[k]]` under the 4x4 affine map `transforms[k]`
+    (a rotation times a positive scale, then a shift), in sRGB colour `rgb[k]`, with `alpha[k]` the number
+    its material reads beside the colour (a leaf's dust)."""
+
+    templates: tuple[Mesh, ...]
+    template: np.ndarray  # (K,) int
+    transforms: np.ndarray  # (K, 4, 4)
+    rgb: np.ndarray  # (K, 3)
+    alpha: np.ndarray  # (K,)
+    template_rgb: tuple[np.ndarray, ...] | None = None  # per template, an sRGB colour per vertex (a 'simple' plant's leaves)
+
+    def merged(self) -> Mesh:
+        """Every copy's triangles in one mesh, in copy order (what a view without instancing draws)."""
+        return meshes.merge([self.templates[i].transformed(m[:3, :3], m[:3, 3]) for i, m in zip(self.template, self.transforms)])
+
+    @property
+    def rigid(self) -> bool:
+        """Every copy is its template turned and moved, not scaled (a view can place a shared mesh by pose alone)."""
+        rotations = np.asarray(self.transforms, dtype=float)[:, :3, :3]
+        return bool(np.allclose(rotations @ rotations.transpose(0, 2, 1), np.eye(3), atol=1e-9)
+                    and np.all(np.linalg.det(rotations) > 0))
+
+
+@dataclass(frozen=True)
 class SceneObject:
-    """One object of a view: a mesh or primitive shapes, a material of `scene.materials.MATERIALS`,
-    its instance id (`pass_index`, a pepper's id; 0 for everything else), an object colour
-    (sRGB, for materials that take the object's colour), smooth shading, and an optional
-    per-vertex sRGB colour (the leaf colour of each blade)."""
+    """One object of a view: a mesh, copies of templates or primitive shapes, a material of
+    `scene.materials.MATERIALS`, its instance id (`pass_index`, a pepper's id; 0 for everything else),
+    an object colour (sRGB, for materials that take the object's colour) and the number its material
+    reads beside it (`alpha`: a fruit's ripe share), smooth shading, and an optional per-vertex sRGB
+    colour (the leaf colour of each blade)."""
 
     name: str
     mesh: Mesh | None = None
@@ -77,26 +123,34 @@ class SceneObject:
     smooth: bool = False
     vertex_rgb: np.ndarray | None = None
     shapes: tuple[Shape, ...] = field(default=())
+    instances: Instances | None = None
+    alpha: float = 1.0
 
     def __post_init__(self) -> None:
-        if (self.mesh is None) == (not self.shapes):
-            raise ValueError(f"{self.name}: an object is a mesh or primitive shapes, not both nor neither")
+        if (self.mesh is not None) + bool(self.shapes) + (self.instances is not None) != 1:
+            raise ValueError(f"{self.name}: an object is one of a mesh, copies of templates or primitive shapes")
         if self.material not in MATERIALS:
             raise ValueError(f"{self.name}: no material {self.material!r}")
         if not 0 <= self.pass_index <= MAX_PEPPER_ID:
             raise ValueError(f"{self.name}: pass_index {self.pass_index} outside 0..{MAX_PEPPER_ID}")
 
     def triangles(self) -> Mesh:
-        """The mesh, or the shapes' meshes merged in order (what a triangle renderer draws)."""
-        return self.mesh if self.mesh is not None else meshes.merge([shape.mesh() for shape in self.shapes])
+        """The mesh, the copies merged, or the shapes' meshes merged in order (what a triangle renderer draws)."""
+        if self.mesh is not None:
+            return self.mesh
+        if self.instances is not None:
+            return self.instances.merged()
+        return meshes.merge([shape.mesh() for shape in self.shapes])
 
     def display_rgba(self) -> RGBA:
         """The flat colour of a view without Cycles' materials: the object's own colour, else the mean
-        of its vertex colours (a plant's leaves), else the material's display colour."""
+        of its vertex colours or of its copies' colours (a plant's leaves), else the material's display colour."""
         if self.rgb is not None:
             return (*map(float, self.rgb), 1.0)
         if self.vertex_rgb is not None and len(self.vertex_rgb):
             return (*map(float, np.asarray(self.vertex_rgb, dtype=float).reshape(-1, 3).mean(axis=0)), 1.0)
+        if self.instances is not None and len(self.instances.rgb):
+            return (*map(float, np.asarray(self.instances.rgb, dtype=float).mean(axis=0)), 1.0)
         return MATERIALS[self.material].rgba
 
 
@@ -143,23 +197,222 @@ def static_objects(scene: Scene) -> list[SceneObject]:
     ]
 
 
+def _film_shell(environment: Environment, half_x: float, half_y: float) -> Mesh:
+    """Walls up to the gutters and a Venlo roof of spans between gutters, each two panes up to a ridge along y, the
+    gable ends closed: one surface each (a film is one sheet; light passes it once), faces towards the inside."""
+    height = environment.gutter_height
+    gutters = np.append(np.arange(-half_x, half_x - 1e-9, ROOF_SPAN), half_x)
+    corners = np.array([[-half_x, -half_y], [half_x, -half_y], [half_x, half_y], [-half_x, half_y]])
+    polygons = [(np.array([[*a, 0.0], [*a, height], [*b, height], [*b, 0.0]]), np.r_[-(a + b) / 2, 0.0])
+                for a, b in zip(corners, np.roll(corners, -1, axis=0))]  # (corners, a direction into the house)
+    down = np.array([0.0, 0.0, -1.0])
+    for left, right in zip(gutters[:-1], gutters[1:]):
+        middle, top = (left + right) / 2, height + RIDGE_RISE * (right - left) / ROOF_SPAN
+        polygons += [(np.array([[left, -half_y, height], [middle, -half_y, top], [middle, half_y, top], [left, half_y, height]]), down),
+                     (np.array([[middle, -half_y, top], [right, -half_y, height], [right, half_y, height], [middle, half_y, top]]), down),
+                     (np.array([[left, -half_y, height], [right, -half_y, height], [middle, -half_y, top]]), np.array([0.0, 1.0, 0.0])),
+                     (np.array([[right, half_y, height], [left, half_y, height], [middle, half_y, top]]), np.array([0.0, -1.0, 0.0]))]
+    parts = []
+    for polygon, inward in polygons:
+        fan = np.array([[0, k, k + 1] for k in range(1, len(polygon) - 1)])
+        mesh = Mesh(polygon, fan)
+        parts.append(mesh if mesh.face_normals()[0] @ inward > 0 else Mesh(polygon, fan[:, ::-1]))
+    return meshes.merge(parts)
+
+
+def _truss(y: float, half_x: float, height: float) -> list[Box | Cylinder]:
+    """A lattice truss across the house under the gutters at `y`: two chords, a vertical and a diagonal each bay."""
+    top, bottom = height - GUTTER[1] - CHORD / 2, height - GUTTER[1] - TRUSS_DEPTH
+    shapes: list[Box | Cylinder] = [Box(f"truss_{y:.2f}_{z:.2f}", (0.0, y, z), (half_x, CHORD / 2, CHORD / 2)) for z in (top, bottom)]
+    xs = np.append(np.arange(-half_x, half_x - 1e-9, TRUSS_BAY), half_x)
+    for k, (a, b) in enumerate(zip(xs[:-1], xs[1:])):
+        shapes.append(Cylinder(f"truss_{y:.2f}_v{k}", (a, y, bottom), (a, y, top), CHORD / 4))
+        low, high = (a, b) if k % 2 == 0 else (b, a)
+        shapes.append(Cylinder(f"truss_{y:.2f}_d{k}", (low, y, bottom), (high, y, top), CHORD / 4))
+    return shapes
+
+
+def _wires_and_strings(scene: Scene, inside: bool) -> list[Cylinder]:
+    """The crop wire over every scanned row's line and the string from it down to each scanned plant's top: what of
+    the structure stands in the room (`inside`), or the wires over the neighbouring rows and their strings."""
+    environment = scene.environment
+    half_y = scene.room[1] / 2 + environment.extent
+    wire = environment.wire_height
+    if inside:
+        lines = sorted({row.table.center[0] for row in scene.rows})
+        tops = [(plant.position, plant.bounds.max[2]) for plant in scene.plants]
+    else:
+        scanned = {round(row.table.center[0], 6) for row in scene.rows}
+        lines = sorted({table.center[0] for table in environment.tables} - scanned)
+        tops = [(copy.position, environment.prototypes[copy.prototype].plant.bounds.max[2]) for copy in environment.plants]
+        tops += [((trap.center[0], trap.center[1]), trap.center[2] + TRAP_SIZE[1] / 2) for trap in environment.traps]
+    shapes = [Cylinder(f"wire_{x:.3f}", (x, -half_y, wire), (x, half_y, wire), WIRE_RADIUS) for x in lines]
+    prefix = "string" if inside else "string_bg"
+    shapes += [Cylinder(f"{prefix}_{k}", (p[0], p[1], top), (p[0], p[1], wire), STRING_RADIUS) for k, (p, top) in enumerate(tops)]
+    return shapes
+
+
+@functools.cache
+def _neighbour_leaf_template(index: int) -> Mesh:
+    stations, half = NEIGHBOUR_LEAF
+    return meshes.pepper_leaf(LEAF_SHAPES[index], petiole=PETIOLE, stations=stations, half=half)
+
+
+def _neighbour_leaves(plant) -> Mesh:
+    """A neighbouring 'pepper' plant's leaves, each its template's coarse copy scaled and placed, in one mesh."""
+    parts = []
+    for leaf in plant.leaves:
+        transform = leaf_transform(leaf)
+        parts.append(_neighbour_leaf_template(leaf.template).transformed(transform[:3, :3], transform[:3, 3]))
+    return meshes.merge(parts)
+
+
+def _neighbour_fruit(pepper) -> Mesh:
+    rings, segments = NEIGHBOUR_FRUIT
+    return meshes.pepper(pepper.center, pepper.axis, pepper.length, pepper.width, pepper.lobes, pepper.lobe_depth,
+                         twist=pepper.twist, rings=rings, segments=segments)
+
+
+def _yaw(position: tuple[float, float, float], yaw: float) -> np.ndarray:
+    """4x4 map of a prototype (its pot's base at x = y = 0) turned by `yaw` about z and stood at `position`."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    transform = np.eye(4)
+    transform[:2, :2] = [[c, -s], [s, c]]
+    transform[:2, 3] = position[:2]
+    return transform
+
+
+def _background_plants(environment: Environment) -> list[SceneObject]:
+    """The neighbouring plants as copies of the prototypes, one object per part (pot, stem, leaves, flowers, calyces,
+    fruit of each colour) whose templates are the prototypes' parts. A copy's leaves are one template in one
+    colour; its fruit are drawn in their material with instance id 0: not peppers of the masks."""
+    if not environment.plants:
+        return []
+    parts: dict[tuple[str, str], dict[int, tuple[Mesh, np.ndarray, float, np.ndarray | None]]] = {}
+    for index, prototype in enumerate(environment.prototypes):
+        plant, fruit = prototype.plant, prototype.fruit
+        built = plant_meshes(plant, fruit)
+
+        def add(part: str, material: str, mesh: Mesh | None, rgb, alpha: float = 1.0, vertex_rgb=None) -> None:
+            if mesh is not None and len(mesh.faces):
+                parts.setdefault((part, material), {})[index] = (mesh, np.asarray(rgb, dtype=float), alpha, vertex_rgb)
+
+        add("pot", "pot", built.pot, MATERIALS["pot"].rgba[:3])
+        add("stem", "stem", built.stem, MATERIALS["stem"].rgba[:3])
+        leaf_rgb = np.mean([leaf.rgb for leaf in plant.leaves], axis=0)
+        if plant.leaves and plant.leaves[0].template is not None:
+            add("leaves", "pepper_leaf", _neighbour_leaves(plant), leaf_rgb, float(np.mean([leaf.dust or 0.0 for leaf in plant.leaves])))
+        else:
+            colors = np.concatenate([np.tile(leaf.rgb, (len(m.vertices), 1)) for leaf, m in zip(plant.leaves, built.leaves)])
+            add("leaves", "leaf", meshes.merge(built.leaves), leaf_rgb, vertex_rgb=colors)
+        add("flowers", "flower", built.flowers, MATERIALS["flower"].rgba[:3])
+        add("calyces", "calyx", built.calyces, MATERIALS["calyx"].rgba[:3])
+        for color in sorted({pepper.color for pepper in fruit}):
+            same = [pepper for pepper in fruit if pepper.color == color]
+            skin = "pepper" if same[0].ripeness is None else "fruit"
+            ripe = float(np.mean([1.0 if p.ripeness is None else p.ripeness for p in same]))
+            add(f"fruit_{color}", f"{skin}_{color}", meshes.merge([_neighbour_fruit(p) for p in same]),
+                np.mean([p.rgb for p in same], axis=0), ripe)
+    objects = []
+    for (part, material), by_prototype in parts.items():
+        order = sorted(by_prototype)
+        copies = [copy for copy in environment.plants if copy.prototype in by_prototype]
+        if not copies:
+            continue
+        slot = {prototype: k for k, prototype in enumerate(order)}
+        vertex_rgb = [by_prototype[p][3] for p in order]
+        instances = Instances(
+            templates=tuple(by_prototype[p][0] for p in order),
+            template=np.array([slot[copy.prototype] for copy in copies]),
+            transforms=np.array([_yaw(copy.position, copy.yaw) for copy in copies]),
+            rgb=np.array([by_prototype[copy.prototype][1] for copy in copies]),
+            alpha=np.array([by_prototype[copy.prototype][2] for copy in copies]),
+            template_rgb=tuple(vertex_rgb) if all(v is not None for v in vertex_rgb) else None,
+        )
+        objects.append(SceneObject(f"background_{part}", material=material, smooth=part != "pot", instances=instances))
+    return objects
+
+
+def film_tint(age: float) -> tuple[float, float, float]:
+    """The film's colour at `age` (0 new, 1 old), sRGB: the material table's new and old tints mixed."""
+    film = MATERIALS["film"]
+    return tuple(float(a + age * (b - a)) for a, b in zip(film.base_rgb, film.accent_rgb))
+
+
+def environment_objects(scene: Scene) -> list[SceneObject]:
+    """The film greenhouse round the room (scene.json's `environment`): ground cover, the film shell, gutters, posts
+    (none in the room) and trusses, wires and strings, the neighbouring rows' benches, plants and sticky traps."""
+    environment = scene.environment
+    length, width, _ = scene.room
+    half_x, half_y = length / 2 + environment.extent, width / 2 + environment.extent
+    height = environment.gutter_height
+    gutters = np.append(np.arange(-half_x, half_x - 1e-9, ROOF_SPAN), half_x)
+    stations = np.append(np.arange(-half_y, half_y - 1e-9, TRUSS_SPACING), half_y)
+    steel: list[Box | Cylinder] = [Box(f"gutter_{k}", (x, 0.0, height - GUTTER[1] / 2), (GUTTER[0] / 2, half_y, GUTTER[1] / 2))
+                                   for k, x in enumerate(gutters)]
+    for x in gutters:
+        for y in stations:
+            if abs(x) > length / 2 + POST or abs(y) > width / 2 + POST:  # the room, the flight volume, has no posts
+                half_height = (height - GUTTER[1]) / 2
+                steel.append(Box(f"post_{x:.2f}_{y:.2f}", (x, y, half_height), (POST / 2, POST / 2, half_height)))
+    for y in stations:
+        steel.extend(_truss(y, half_x, height))
+    benches = [box for k, table in enumerate(environment.tables) for box in table_boxes(f"bench_{k}", table.center, table.size)]
+    card = (TRAP_SIZE[2] / 2, TRAP_SIZE[0] / 2, TRAP_SIZE[1] / 2)  # facing along x, as every trap does
+    traps = [Box(f"trap_{k}", trap.center, card) for k, trap in enumerate(environment.traps)]
+    objects = [
+        SceneObject("ground_cover", material="ground_cover", shapes=(Box("ground_cover", (0, 0, -0.05), (half_x, half_y, 0.05)),)),
+        SceneObject("film", _film_shell(environment, half_x, half_y), "film", rgb=film_tint(environment.film_age),
+                    alpha=environment.film_age),
+        SceneObject("structure", material="steel", shapes=tuple(steel)),
+        SceneObject("wires", material="string", shapes=(*_wires_and_strings(scene, True), *_wires_and_strings(scene, False))),
+    ]
+    if benches:
+        objects.append(SceneObject("benches", material="table", shapes=tuple(benches)))
+    if traps:
+        objects.append(SceneObject("traps", material="trap", shapes=tuple(traps)))
+    return objects + _background_plants(environment)
+
+
 def greenhouse_objects(scene: Scene) -> list[SceneObject]:
     """What the renderers draw: the static objects, then per plant one pot, one stem, one leaf and
-    one flower object and one object per pepper (its pass_index is its id)."""
+    one flower object, the calyces, and one object per pepper (its pass_index is its id). A 'simple'
+    plant's leaves are one mesh with per-vertex colours; a 'pepper' plant's are copies of the leaf
+    templates (`Instances`), each fruit of its has the 'fruit_' material and its ripe share as alpha.
+    In a 'film' environment the room's floor and walls give way to the greenhouse round it (the walls stay in
+    the physics world: the flight volume's fence)."""
     objects = static_objects(scene)
+    if scene.environment is not None:
+        objects = [obj for obj in objects if obj.name not in ("floor", "walls")] + environment_objects(scene)
     for plant in scene.plants:
         peppers = scene.peppers_of(plant.id)
         parts = plant_meshes(plant, peppers)
         objects.append(SceneObject(f"pot_{plant.id}", parts.pot, "pot"))
         objects.append(SceneObject(f"stem_{plant.id}", parts.stem, "stem", smooth=True))
-        if parts.leaves:
-            colors = np.concatenate([np.tile(leaf.rgb, (len(m.vertices), 1)) for leaf, m in zip(plant.leaves, parts.leaves)])
-            objects.append(SceneObject(f"leaves_{plant.id}", meshes.merge(parts.leaves), "leaf", smooth=True, vertex_rgb=colors))
+        own = [(leaf, m) for leaf, m in zip(plant.leaves, parts.leaves) if leaf.template is None]
+        if own:
+            colors = np.concatenate([np.tile(leaf.rgb, (len(m.vertices), 1)) for leaf, m in own])
+            objects.append(SceneObject(f"leaves_{plant.id}", meshes.merge([m for _, m in own]), "leaf", smooth=True,
+                                       vertex_rgb=colors))
+        copies = [leaf for leaf in plant.leaves if leaf.template is not None]
+        if copies:
+            instances = Instances(
+                templates=tuple(leaf_template(i) for i in range(len(LEAF_SHAPES))),
+                template=np.array([leaf.template for leaf in copies]),
+                transforms=np.array([leaf_transform(leaf) for leaf in copies]),
+                rgb=np.array([leaf.rgb for leaf in copies]),
+                alpha=np.array([leaf.dust or 0.0 for leaf in copies]),
+            )
+            objects.append(SceneObject(f"leaf_copies_{plant.id}", material="pepper_leaf", smooth=True, instances=instances))
         if parts.flowers is not None:
             objects.append(SceneObject(f"flowers_{plant.id}", parts.flowers, "flower"))
+        if parts.calyces is not None:
+            objects.append(SceneObject(f"calyces_{plant.id}", parts.calyces, "calyx", smooth=True))
         for pepper in peppers:
-            objects.append(SceneObject(f"pepper_{pepper.id}", parts.peppers[pepper.id], f"pepper_{pepper.color}",
-                                       pass_index=pepper.id, rgb=tuple(pepper.rgb), smooth=True))
+            skin = "pepper" if pepper.ripeness is None else "fruit"
+            objects.append(SceneObject(f"pepper_{pepper.id}", parts.peppers[pepper.id], f"{skin}_{pepper.color}",
+                                       pass_index=pepper.id, rgb=tuple(pepper.rgb), smooth=True,
+                                       alpha=1.0 if pepper.ripeness is None else pepper.ripeness))
     return objects
 
 
@@ -178,4 +431,10 @@ def collision_objects(scene: Scene) -> list[SceneObject]:
         canopy = Box(f"plant_{plant.id}", ((low[0] + high[0]) / 2, (low[1] + high[1]) / 2, (bottom + high[2]) / 2),
                      ((high[0] - low[0]) / 2, (high[1] - low[1]) / 2, (high[2] - bottom) / 2))
         objects.append(SceneObject(f"canopy_{plant.id}", material="canopy", shapes=(canopy,)))
+    if scene.environment is not None:
+        # of the film greenhouse, only the wires and strings over the scanned rows stand in the room; they hang over
+        # the tables, where the planner never flies
+        inside = [shape for shape in _wires_and_strings(scene, True) if min(shape.start[2], shape.end[2]) < scene.room[2]]
+        if inside:
+            objects.append(SceneObject("wires", material="string", shapes=tuple(inside)))
     return objects

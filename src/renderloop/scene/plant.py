@@ -200,17 +200,12 @@ def pepper_rgb(rng: np.random.Generator, color: str) -> np.ndarray:
     return np.clip(np.array(BASE_RGB[color]) * rng.uniform(0.85, 1.15, size=3), 0.0, 1.0)
 
 
-def grow_plant(
-    rng: np.random.Generator,
-    config: PlantConfig,
-    plant_id: int,
-    row: int,
-    position: tuple[float, float, float],
-    peppers_per_side: tuple[int, int],
-    first_pepper_id: int,
-) -> tuple[Plant, list[Pepper]]:
-    """One plant with `peppers_per_side` = (left, right) fruit, ids counting from `first_pepper_id`."""
-    grower = PlantGrower(rng, config, position)
+def place_fruit(
+    grower: PlantGrower, plant_id: int, peppers_per_side: tuple[int, int], first_pepper_id: int
+) -> list[Pepper]:
+    """The fruit of a plant, (left, right) = `peppers_per_side`, ids counting from `first_pepper_id`: every style
+    places them so (the same draws in the same order), so one seed gives the same fruit whatever the style."""
+    rng, config = grower.rng, grower.config
     fruit_config = config.peppers
     names = list(fruit_config.colors)
     weights = np.array([fruit_config.colors[name] for name in names], dtype=float)
@@ -230,6 +225,21 @@ def grow_plant(
                     peduncle=Tube(points=[_round(p) for p in fruit["peduncle"]], radius=0.004),
                 )
             )
+    return peppers
+
+
+def grow_plant(
+    rng: np.random.Generator,
+    config: PlantConfig,
+    plant_id: int,
+    row: int,
+    position: tuple[float, float, float],
+    peppers_per_side: tuple[int, int],
+    first_pepper_id: int,
+) -> tuple[Plant, list[Pepper]]:
+    """One plant with `peppers_per_side` = (left, right) fruit, ids counting from `first_pepper_id`."""
+    grower = PlantGrower(rng, config, position)
+    peppers = place_fruit(grower, plant_id, peppers_per_side, first_pepper_id)
     branches = grower.grow_branches()
     plant = Plant(
         id=plant_id, row=row, position=_round(grower.base),

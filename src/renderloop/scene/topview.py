@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -13,9 +15,38 @@ from matplotlib.patches import Circle, Rectangle  # noqa: E402
 
 from renderloop.io.atomic import atomic_path  # noqa: E402
 from renderloop.scene.model import Plant, Scene  # noqa: E402
-from renderloop.scene.plant_meshes import plant_meshes  # noqa: E402
+from renderloop.scene.plant_meshes import leaf_template, leaf_transform, plant_meshes  # noqa: E402
 
 PEPPER_FACE = {"red": "#c81e14", "yellow": "#f0c20a", "orange": "#f07814", "green": "#3c9a28"}
+
+
+@functools.cache
+def _outline(template: int) -> np.ndarray:
+    """The outline of a leaf template, its longest loop of boundary edges (holes are shorter loops), as vertices in
+    the template's frame: a copy of it is drawn as one polygon, not its few hundred triangles (a 'pepper' plant's
+    hundreds of leaves would otherwise take matplotlib tens of seconds)."""
+    mesh = leaf_template(template)
+    edges = np.sort(mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    neighbours: dict[int, list[int]] = {}
+    for a, b in unique[counts == 1]:
+        neighbours.setdefault(int(a), []).append(int(b))
+        neighbours.setdefault(int(b), []).append(int(a))
+    loops, seen = [], set()
+    for start in sorted(neighbours):
+        if start in seen:
+            continue
+        loop, current = [start], start
+        seen.add(start)
+        while True:
+            ahead = [n for n in neighbours[current] if n not in seen]
+            if not ahead:
+                break
+            current = ahead[0]
+            seen.add(current)
+            loop.append(current)
+        loops.append(loop)
+    return mesh.vertices[max(loops, key=len)]
 
 
 def _rectangle(center, size, **style) -> Rectangle:
@@ -34,17 +65,43 @@ def _draw_layout(axes, scene: Scene) -> None:
     axes.annotate("workstation", (station.center[0], station.center[1] - station.size[1] / 2 - 0.2), ha="center", fontsize=8)
 
 
+def _draw_environment(axes, scene: Scene) -> float:
+    """The film greenhouse round the room: its walls, the neighbouring rows' benches and plants; returns how far it
+    reaches beyond the room (0 without one)."""
+    environment = scene.environment
+    if environment is None:
+        return 0.0
+    length, width, _ = scene.room
+    extent = environment.extent
+    axes.add_patch(_rectangle((0, 0), (length + 2 * extent, width + 2 * extent), fill=False, lw=1, ls="--", ec="0.5"))
+    for table in environment.tables:
+        axes.add_patch(_rectangle(table.center, table.size, fc="0.93", ec="0.75", lw=0.5))
+    points = [copy.position[:2] for copy in environment.plants]
+    if points:
+        axes.scatter(*zip(*points), s=6, c="#6a9a5a", lw=0)
+    axes.annotate("film greenhouse (not scanned)", (0, width / 2 + extent - 0.3), ha="center", fontsize=8, color="0.4")
+    return extent
+
+
 def _draw_plants(axes, scene: Scene, plants: list[Plant], detailed: bool) -> None:
     for plant in plants:
         low, high = plant.bounds.min, plant.bounds.max
         axes.add_patch(Rectangle(low[:2], high[0] - low[0], high[1] - low[1], fill=False, ls=":", ec="#2a7a2a", lw=0.8))
         axes.add_patch(Circle(plant.position[:2], plant.pot.radius_top, fc="0.2", alpha=0.5))
-        if detailed:  # leaf blades seen from above, lowest first
+        if detailed:  # leaf blades seen from above, lowest first: a blade of its own by its triangles, a copy of a template by its outline
             parts = plant_meshes(plant, [])
             order = sorted(range(len(parts.leaves)), key=lambda i: parts.leaves[i].vertices[:, 2].mean())
-            triangles = [parts.leaves[i].vertices[parts.leaves[i].faces][:, :, :2] for i in order]
-            colors = [plant.leaves[i].rgb for i in order for _ in parts.leaves[i].faces]
-            axes.add_collection(PolyCollection([t for block in triangles for t in block], facecolors=colors, lw=0, alpha=0.9))
+            polygons, colors = [], []
+            for i in order:
+                leaf, mesh = plant.leaves[i], parts.leaves[i]
+                if leaf.template is None:
+                    polygons += list(mesh.vertices[mesh.faces][:, :, :2])
+                    colors += [leaf.rgb] * len(mesh.faces)
+                else:
+                    transform = leaf_transform(leaf)
+                    polygons.append((_outline(leaf.template) @ transform[:3, :3].T + transform[:3, 3])[:, :2])
+                    colors.append(leaf.rgb)
+            axes.add_collection(PolyCollection(polygons, facecolors=colors, lw=0, alpha=0.9))
             axes.annotate(f"plant {plant.id}", (plant.position[0], high[1] - 0.03), ha="center", fontsize=8)
         else:
             for leaf in plant.leaves:
@@ -61,14 +118,15 @@ def draw_top_view(scene: Scene, path: Path) -> None:
     """Whole greenhouse on the left, the row with most fruit enlarged on the right."""
     length, width, _ = scene.room
     figure, (overview, zoom) = plt.subplots(1, 2, figsize=(15, 8), dpi=100, gridspec_kw={"width_ratios": [2.2, 1]})
+    margin = 0.2 + _draw_environment(overview, scene)
     _draw_layout(overview, scene)
     _draw_plants(overview, scene, scene.plants, detailed=False)
     counts = {color: sum(p.color == color for p in scene.peppers) for color in PEPPER_FACE}
     legend = ", ".join(f"{n} {color}" for color, n in counts.items() if n)
     overview.set_title(f"seed {scene.seed}: {len(scene.plants)} plants, "
                        f"{sum(p.bearing for p in scene.plants)} bearing, {len(scene.peppers)} peppers ({legend})")
-    overview.set_xlim(-length / 2 - 0.2, length / 2 + 0.2)
-    overview.set_ylim(-width / 2 - 0.2, width / 2 + 0.2)
+    overview.set_xlim(-length / 2 - margin, length / 2 + margin)
+    overview.set_ylim(-width / 2 - margin, width / 2 + margin)
 
     row = max(scene.rows, key=lambda r: sum(len(scene.peppers_of(plant_id)) for plant_id in r.plants))
     table = row.table

@@ -1,0 +1,201 @@
+"""Are the ripe-count intervals calibrated? Coverage and width of each plant's interval on rendered runs, and the
+fit of the interval model's parameters (renderloop.counting.uncertainty, `counting.interval`).
+
+Takes run directories made by `renderloop run` or `renderloop eval` (an eval folder stands for its seed_* runs).
+For each run and each thinning of its scan (--every 1 2 4 8 16: every k-th frame, which is what a camera at rate / k
+takes on the same flight, since frames are taken at the instants k / rate_hz), the evidence of every plant (its
+clusters in each redraw, their support and view spread, from detections.json and groundtruth.txt) is gathered
+once; a set of parameters then costs only the exact distributions. A plant is covered when its true ripe count
+(scene.json) lies in its interval; the width is high - low.
+
+--calib RUN... fits weak_real, hidden and hidden_per_lone by grid search on those runs: of the parameters whose
+coverage reaches the level at every thinning, those of the smallest mean width (ties: the largest mean log
+probability of the true counts). --held RUN... then reports the coverage of the fitted parameters (without
+--calib: the config's, or --set's) on runs the fit never saw. hidden_unseen is not fitted: runs have no voxel map.
+
+    .venv/bin/python benchmarks/intervals.py --calib runs/calib --held runs/held [--every 1 2 4 8 16] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from renderloop.config import IntervalConfig
+from renderloop.counting.uncertainty import (
+    PlantEvidence,
+    central_interval,
+    evidence,
+    plant_pmf,
+)
+from renderloop.rundir import files
+
+# The grid: fine where a parameter first widens an interval at 90 % (a weak cluster false with 5 % or more, a Poisson
+# of mean 0.0513 or more giving a hidden fruit 5 % of the time).
+GRID = {
+    "weak_real": (0.5, 0.6, 0.7, 0.8, 0.9, 0.93, 0.95, 0.97, 0.98, 0.99, 1.0),
+    "hidden": (0.0, 0.005, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.075, 0.1, 0.15, 0.2, 0.3),
+    "hidden_per_lone": (0.0, 0.02, 0.04, 0.05, 0.06, 0.075, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0),
+}
+
+
+@dataclass(frozen=True)
+class Case:
+    """One plant of one run, its scan thinned to every `every`-th frame."""
+
+    run: str
+    every: int
+    plant: PlantEvidence
+    truth: int  # ripe fruit of the plant in scene.json
+
+
+def run_dirs(paths: list[Path]) -> list[Path]:
+    """Run directories: each path one, or an eval folder of seed_* runs."""
+    found = []
+    for path in paths:
+        if (path / "config.yaml").is_file():
+            found.append(path)
+        else:
+            runs = sorted(p for p in path.glob("seed_*") if (p / "counts.json").is_file())
+            if not runs:
+                raise SystemExit(f"{path}: neither a counted run directory nor an eval folder of counted runs")
+            found += runs
+    return found
+
+
+def gather(run: Path, everies: list[int], interval: IntervalConfig) -> tuple[list[Case], dict[int, float]]:
+    """Every plant's evidence at each thinning, and the seconds each took (the redraws' cost)."""
+    config = files.read_config(run)
+    counting = config.counting.model_copy(update={"interval": interval})
+    scene = files.read_scene(run)
+    times, poses = files.read_poses(run)
+    detections = files.read_detections(run, len(times))
+    cameras = {index: pose[:3, 3] for index, pose in enumerate(poses)}
+    truth = {plant.id: sum(p.ripe for p in scene.peppers_of(plant.id)) for plant in scene.plants}
+    cases, seconds = [], {}
+    for every in everies:
+        frames = [frame for frame in detections.frames if frame.index % every == 0]
+        start = time.process_time()
+        plants = evidence(scene, frames, cameras, counting, config.seed)
+        seconds[every] = time.process_time() - start
+        cases += [Case(run.name, every, plants[plant_id], truth[plant_id]) for plant_id in sorted(plants)]
+    return cases, seconds
+
+
+def _shape(plant: PlantEvidence, interval: IntervalConfig) -> tuple:
+    """All the model reads of a plant: its strong and weak clusters and lone detections in each draw, and its unseen
+    fraction."""
+    weak = [sum(cluster.weak(interval) for cluster in draw) for draw in plant.draws]
+    return tuple((len(draw) - w, w, lone) for draw, w, lone in zip(plant.draws, weak, plant.lone)), plant.unseen
+
+
+def score(cases: list[Case], interval: IntervalConfig, shapes: list[tuple] | None = None) -> dict:
+    """Coverage, mean width and mean log probability of the truth, over all cases and per thinning. Plants of one
+    shape (`_shape`) have one distribution, computed once; `shapes`: the cases' shapes, when already known."""
+    shapes = shapes if shapes is not None else [_shape(case.plant, interval) for case in cases]
+    first = {}
+    for case, shape in zip(cases, shapes):
+        first.setdefault(shape, case.plant)
+    distributions = {}
+    for shape, plant in first.items():
+        pmf = plant_pmf(plant, interval)
+        distributions[shape] = (pmf, *central_interval(pmf, interval.level))
+    rows = []
+    for case, shape in zip(cases, shapes):
+        pmf, low, high = distributions[shape]
+        probability = pmf[case.truth] if case.truth < len(pmf) else 0.0
+        rows.append((case.every, low <= case.truth <= high, high - low, math.log(max(probability, 1e-300)),
+                     case.plant.estimate == case.truth))
+
+    def summary(selected: list[tuple]) -> dict:
+        return {"plants": len(selected), "coverage": float(np.mean([r[1] for r in selected])),
+                "mean_width": float(np.mean([r[2] for r in selected])), "log_probability": float(np.mean([r[3] for r in selected])),
+                "exact": float(np.mean([r[4] for r in selected]))}
+
+    everies = sorted({r[0] for r in rows})
+    return {"all": summary(rows), "every": {every: summary([r for r in rows if r[0] == every]) for every in everies}}
+
+
+def fit(cases: list[Case], base: IntervalConfig) -> tuple[IntervalConfig, dict, int]:
+    """The grid's smallest mean width with coverage >= level at every thinning; ties: the larger log probability.
+    Where no parameters reach the level everywhere, those of the largest worst coverage."""
+    best, best_key, tried = None, None, 0
+    shapes = [_shape(case.plant, base) for case in cases]  # the grid keeps the weak rule: the shapes stay
+    for values in itertools.product(*GRID.values()):
+        interval = base.model_copy(update=dict(zip(GRID, values)))
+        result = score(cases, interval, shapes)
+        tried += 1
+        worst = min(part["coverage"] for part in result["every"].values())
+        reached = worst >= base.level - 1e-12
+        key = (reached, -result["all"]["mean_width"] if reached else worst, result["all"]["log_probability"])
+        if best_key is None or key > best_key:
+            best, best_key = (interval, result), key
+    return best[0], best[1], tried
+
+
+def print_table(title: str, result: dict, level: float) -> None:
+    print(f"\n{title}")
+    print(f"{'frames':>10} {'plants':>7} {'exact':>7} {'coverage':>9} {'mean width':>11} {'log p(truth)':>13}")
+    for every, part in [*result["every"].items(), ("all", result["all"])]:
+        name = "all" if every == "all" else f"every {every}"
+        print(f"{name:>10} {part['plants']:>7} {part['exact']:>7.1%} {part['coverage']:>9.1%} {part['mean_width']:>11.3f} "
+              f"{part['log_probability']:>13.3f}")
+    print(f"(level {level:.0%}; exact: share of plants whose estimate is the truth)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--calib", type=Path, nargs="*", default=[], help="runs (or eval folders) to fit on")
+    parser.add_argument("--held", type=Path, nargs="*", default=[], help="runs (or eval folders) to check on")
+    parser.add_argument("--every", type=int, nargs="+", default=[1, 2, 4, 8, 16], help="thinnings of each scan")
+    parser.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE", help="counting.interval fields")
+    parser.add_argument("--json", type=Path, help="write the figures here too")
+    args = parser.parse_args()
+    if not args.calib and not args.held:
+        parser.error("give --calib runs to fit on, --held runs to check on, or both")
+    base = IntervalConfig.model_validate({**IntervalConfig().model_dump(),
+                                          **{k: float(v) if "." in v else int(v) for k, v in (s.split("=", 1) for s in args.set)}})
+    report: dict = {"every": args.every, "start": base.model_dump()}
+
+    def cases_of(paths: list[Path], name: str) -> list[Case]:
+        cases, costs = [], []
+        for run in run_dirs(paths):
+            found, seconds = gather(run, args.every, base)
+            cases += found
+            costs.append(seconds)
+            print(f"{name} {run}: " + ", ".join(f"every {k}: {v:.1f} s CPU" for k, v in seconds.items()))
+        report[f"{name}_runs"] = [str(run) for run in run_dirs(paths)]
+        report[f"{name}_cpu_s"] = {every: float(np.median([c[every] for c in costs])) for every in args.every}
+        return cases
+
+    interval = base
+    if args.calib:
+        calib = cases_of(args.calib, "calib")
+        start = time.perf_counter()
+        interval, result, tried = fit(calib, base)
+        print(f"\nfitted on {len(calib)} plant-scans, {tried} parameter sets in {time.perf_counter() - start:.0f} s: "
+              + ", ".join(f"{name} = {getattr(interval, name)}" for name in GRID))
+        print_table("calibration runs, fitted parameters", result, interval.level)
+        print_table("calibration runs, the redraws alone (no hidden fruit, every weak cluster real)",
+                    score(calib, interval.model_copy(update={"weak_real": 1.0, "hidden": 0.0, "hidden_per_lone": 0.0})),
+                    interval.level)
+        report["fitted"] = {name: getattr(interval, name) for name in GRID}
+        report["calib"] = result
+    if args.held:
+        held = cases_of(args.held, "held")
+        result = score(held, interval)
+        print_table("held-out runs, " + ("fitted parameters" if args.calib else "these parameters"), result, interval.level)
+        report["held"] = result
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=1, sort_keys=True, default=str) + "\n")
+
+
+if __name__ == "__main__":
+    main()

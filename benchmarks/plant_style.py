@@ -1,0 +1,77 @@
+"""What the 'pepper' plant style costs next to the 'simple' one: scene, file, Blender scene, frames.
+
+Demo preset (seed 0, 4 plants, 320x240, the config's default quality: 1 sample, fast denoise), per
+style: the time `generate_scene` takes, the size of `scene.json`, the time the Cycles renderer
+takes to build its Blender scene, the first frame (which also syncs the scene into Cycles), and
+then frames from scan-like poses; the raster backend's build and frames beside them. Medians with
+min and max of wall seconds and of the process's CPU seconds (all its threads), which other jobs
+on a shared machine disturb far less.
+
+    .venv/bin/python benchmarks/plant_style.py [--repeats 3] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from common import scan_poses, summary
+
+from renderloop.config import Config, load_config
+from renderloop.io.atomic import dumps_json
+from renderloop.render.camera import Intrinsics
+from renderloop.render.cycles import CyclesRenderer
+from renderloop.render.raster import RasterRenderer
+from renderloop.scene.generate import generate_scene
+
+
+def timed(function, *args):
+    wall, cpu = time.perf_counter(), time.process_time()
+    result = function(*args)
+    return result, time.perf_counter() - wall, time.process_time() - cpu
+
+
+def measure(style: str, repeats: int) -> dict:
+    data = load_config("demo").model_dump(mode="json")
+    data["plants"]["style"] = style
+    config = Config.model_validate(data)
+    builds = [timed(generate_scene, config) for _ in range(repeats)]
+    scene = builds[0][0]
+    intrinsics = Intrinsics.from_config(config.camera)
+    poses = scan_poses(scene, 4) * repeats
+    out = {
+        "leaves_per_plant": summary([len(plant.leaves) for plant in scene.plants]),
+        "scene_s": summary([wall for _, wall, _ in builds]),
+        "scene_cpu_s": summary([cpu for *_, cpu in builds]),
+        "scene_json_bytes": len(dumps_json(scene.model_dump(mode="json")).encode()),
+    }
+    renderer, wall, cpu = timed(CyclesRenderer, scene, config, intrinsics)
+    with renderer:
+        out["cycles_build_s"], out["cycles_build_cpu_s"] = wall, cpu
+        _, out["cycles_first_frame_s"], out["cycles_first_frame_cpu_s"] = timed(renderer.render, poses[0])
+        frames = [timed(renderer.render, pose) for pose in poses]
+    out["cycles_frame_s"] = summary([wall for _, wall, _ in frames])
+    out["cycles_frame_cpu_s"] = summary([cpu for *_, cpu in frames])
+    raster, out["raster_build_s"], _ = timed(RasterRenderer, scene, config, intrinsics)
+    with raster:
+        raster.render(poses[0])
+        out["raster_frame_ms"] = summary([1000 * timed(raster.render, pose)[1] for pose in poses])
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+    results = {style: measure(style, args.repeats) for style in ("simple", "pepper")}
+    text = json.dumps(results, indent=1)
+    print(text)
+    if args.json:
+        args.json.write_text(text + "\n")
+
+
+if __name__ == "__main__":
+    main()
