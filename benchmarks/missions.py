@@ -64,9 +64,12 @@ def main() -> None:
             axis.plot([p["frames"] for p in static], [p[key] for p in static], "o-", color="#1f3b73", label="static scan")
             for p in static:
                 axis.annotate(f"{p['rate_hz']:g} Hz", (p["frames"], p[key]), textcoords="offset points", xytext=(4, 4), fontsize=8)
-            for p in points:
-                if p["mission"] == "adaptive":
-                    axis.plot(p["frames"], p[key], "D", color="#e67e22", markersize=8, label="adaptive mission")
+            adaptive = [p for p in points if p["mission"] == "adaptive"]
+            axis.plot([p["frames"] for p in adaptive], [p[key] for p in adaptive], "D", color="#e67e22", markersize=8,
+                      label="adaptive mission (first pass at)")
+            for p in adaptive:
+                axis.annotate(f"{p['rate_hz']:g} Hz", (p["frames"], p[key]), textcoords="offset points", xytext=(4, -12),
+                              fontsize=8, color="#e67e22")
             axis.set_xlabel("frames rendered a seed")
             axis.set_ylabel(label)
             axis.grid(alpha=0.3)
