@@ -7,6 +7,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+import onnx
 import pytest
 import torch
 from PIL import Image, ImageDraw
@@ -153,6 +154,23 @@ def test_fine_tuning_starts_from_the_weights_of_a_checkpoint(tiny_dataset: Path,
     junk.write_bytes(b"not a checkpoint")
     with pytest.raises(UserError, match="junk.ckpt: not a renderloop training checkpoint"):
         train_detector(tiny_dataset, tmp_path / "other.onnx", settings, device="cpu", workers=0, log=lambda _: None, init=junk)
+
+
+def test_fine_tuning_starts_from_an_onnx_detector_whose_batch_norms_are_folded(tiny_dataset: Path, tmp_path: Path):
+    exported = tmp_path / "exported.onnx"
+    export_onnx(jittered_model(6), exported)  # batch norms with non-trivial statistics, folded by the exporter
+    still = TrainSettings(epochs=1, batch_size=4, warmup_steps=1, learning_rate=1e-7, max_steps=1)
+    tuned = tmp_path / "tuned.onnx"
+    record = train_detector(tiny_dataset, tuned, still, device="cpu", workers=0, log=lambda _: None, init=exported)
+    assert record["frozen_batch_norms"] is True
+    rgb = (np.random.default_rng(2).random((240, 320, 3)) * 255).astype(np.uint8)
+    # the same function: the weights came back, and a training step did not move the frozen statistics
+    for got, want in zip(Detector(tuned).raw(rgb), Detector(exported).raw(rgb)):
+        assert np.allclose(got, want, atol=1e-3)
+    other = tmp_path / "other.onnx"
+    onnx.save(onnx.helper.make_model(onnx.helper.make_graph([], "empty", [], [])), str(other))
+    with pytest.raises(UserError, match="other.onnx: 0 convolutions where the detector has 98"):
+        train_detector(tiny_dataset, tmp_path / "x.onnx", still, device="cpu", workers=0, log=lambda _: None, init=other)
 
 
 def test_several_datasets_train_together_and_are_scored_apart(tiny_dataset: Path, tmp_path: Path):

@@ -8,6 +8,7 @@ import pytest
 from renderloop.scene.meshes import (
     Mesh,
     box,
+    ellipsoid,
     flower,
     frame_from_axis,
     leaf,
@@ -292,3 +293,12 @@ def test_pot_bounds_and_watertight(rb: float, rt: float, h: float) -> None:
     # closed as "pot filled up to the soil": between the soil-level cylinder inside and the bounding cylinder
     r_in = min(rb, rt - 0.004) - 0.004
     assert np.pi * r_in**2 * (h - 0.02) < m.signed_volume() < np.pi * rt**2 * h
+
+
+def test_an_ellipsoid_is_closed_outward_and_holds_its_volume() -> None:
+    turn = frame_from_axis(np.array([1.0, 1.0, 0.0]))
+    mesh = ellipsoid((0.1, -0.2, 0.3), (0.03, 0.04, 0.08), turn, rings=40, segments=80)
+    assert mesh.signed_volume() == pytest.approx(4 / 3 * np.pi * 0.03 * 0.04 * 0.08, rel=0.01)
+    edges = np.sort(np.concatenate([mesh.faces[:, [0, 1]], mesh.faces[:, [1, 2]], mesh.faces[:, [2, 0]]]), axis=1)
+    assert np.all(np.unique(edges, axis=0, return_counts=True)[1] == 2)  # every edge shared by two faces: watertight
+    assert np.allclose(mesh.vertices.mean(axis=0), (0.1, -0.2, 0.3), atol=1e-3)

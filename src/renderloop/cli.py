@@ -31,7 +31,7 @@ from renderloop.evaluation.seeds import parse_seeds
 from renderloop.evaluation.table import EVAL_CSV, EVAL_JSON, format_table, write_eval
 from renderloop.export.command import export_run
 from renderloop.io.atomic import final_path
-from renderloop.perception.detector import Detector
+from renderloop.perception.detector import Detector, shipped_model
 from renderloop.perception.photos import detect_photos
 from renderloop.perception.photo_score import OUTPUTS as PHOTO_SCORE_FILES
 from renderloop.perception.photo_score import score_photos, summary
@@ -104,6 +104,11 @@ def fly(run_dir: RunDir, force: Force = False) -> None:
     typer.echo(f"fly: {'wrote' if made else 'already complete in'} {run_dir}")
 
 
+def _names(text: str) -> tuple[str, ...]:
+    """A comma-separated option's names, in order, each once."""
+    return tuple(dict.fromkeys(name.strip() for name in text.split(",")))
+
+
 @contextmanager
 def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
     """A rich bar on stderr; yields the (done, total) callback the stages take. The bar appears with the first
@@ -150,15 +155,21 @@ def dataset(
     views_per_scene: Annotated[int, typer.Option(min=1, max=1000, help="Views rendered from each random scene.")] = DatasetSpec.views_per_scene,
     width: Annotated[int, typer.Option(min=16, max=4096, help="Image width, px (height: 3/4 of it).")] = DatasetSpec.width,
     distance: Annotated[tuple[float, float], typer.Option(help="Near and far camera distance from the plant axis, m.")] = DatasetSpec.distance,
-    sensor: Annotated[bool, typer.Option("--sensor/--no-sensor", help="Each view through the colour-sensor model "
-                                         "(exposure, white balance, noise, vignetting, defocus, sharpening, JPEG), drawn at random.")] = DatasetSpec.sensor,
+    sensor: Annotated[float, typer.Option(min=0.0, max=1.0, help="Share of the views through the colour-sensor model "
+                                          "(exposure, white balance, noise, vignetting, defocus, sharpening, JPEG), drawn at random.")] = DatasetSpec.sensor,
+    styles: Annotated[str, typer.Option(help="Plant styles the scenes draw from, comma-separated: simple, pepper.")] = "simple",
+    environments: Annotated[str, typer.Option(help="Surroundings the scenes draw from, comma-separated: plain, film.")] = "plain",
+    clutter: Annotated[bool, typer.Option("--clutter/--no-clutter", help="Things that are not peppers in every scene: "
+                                          "fruit-like shapes, cans, cartons, patterned mats and boards.")] = DatasetSpec.clutter,
+    close: Annotated[float, typer.Option(min=0.0, max=1.0, help="Share of the views of one fruit from 0.12-0.5 m.")] = DatasetSpec.close,
     workers: Workers = 1,
     executor: Executor = "local",
     address: Address = None,
     force: Force = False,
 ) -> None:
     """Render a COCO detection dataset (ripe, unripe) of random greenhouse views with Cycles, boxes from the masks."""
-    spec = DatasetSpec(seed=seed, width=width, height=width * 3 // 4, views_per_scene=views_per_scene, distance=distance, sensor=sensor)
+    spec = DatasetSpec(seed=seed, width=width, height=width * 3 // 4, views_per_scene=views_per_scene, distance=distance,
+                       sensor=sensor, styles=_names(styles), environments=_names(environments), clutter=clutter, close=close)
     with _progress_bar("dataset") as progress:
         made = build_dataset(out, images, spec, workers, executor, address, force, progress)
     typer.echo(f"dataset: rendered {made} images, {images} in {out}")
@@ -191,7 +202,8 @@ def train(
     seed: Annotated[int, typer.Option(min=0)] = 0,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "auto",
     loader_workers: Annotated[int, typer.Option(min=0, max=64, help="Data-loading processes.")] = 1,
-    init: Annotated[Path | None, typer.Option(help="Start from the weights of an earlier run's .ckpt (fine-tuning).")] = None,
+    init: Annotated[Path | None, typer.Option(help="Start from these weights (fine-tuning): an earlier run's .ckpt, a "
+                                              "renderloop ONNX detector, or 'shipped' for the model in the package.")] = None,
 ) -> None:
     """Train the pepper detector (SSDlite MobileNetV3) from scratch or --init weights; resumes from its checkpoint; exports ONNX."""
     try:
@@ -200,6 +212,8 @@ def train(
         raise UserError(f"training needs the train extra: pip install 'renderloop[train]' ({error.name} is missing)") from None
     if device not in ("auto", "cpu", "cuda"):
         raise UserError(f"--device {device}: choose from auto, cpu, cuda")
+    if init is not None and str(init) == "shipped":
+        init = shipped_model()
     settings = TrainSettings(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate, warmup_steps=warmup_steps, seed=seed)
     record = train_detector(dataset_dirs, out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True), init=init)
     last = record["history"][-1] if record["history"] else {}
@@ -301,7 +315,7 @@ def evaluate_seeds(
     if executor not in ("local", "ray"):
         raise UserError(f"--executor {executor}: choose from local, ray")
     seed_list = parse_seeds(seeds)
-    kinds = tuple(dict.fromkeys(kind.strip() for kind in mission.split(","))) if mission else None
+    kinds = _names(mission) if mission else None
     for kind in kinds or ():
         load_config(preset, config, mission=kind)  # an unknown mission is refused in one line, before any run
     base = load_config(preset, config)

@@ -9,25 +9,15 @@ cluster is one pepper.
 
 That scaling holds exactly only if every detection owns ceil(500 / n_init) points, so
 each detection gets exactly that many and the set holds n_init * ceil(500 / n_init)
-points (500 up to 500 + n_init - 1) instead of exactly 500. Filling exactly 500 gives
-some detections floor(500 / n_init) places, and a fruit seen twice then falls short of
-MinPts whenever its two detections are among them: measured on paper seed 7 and the five
-seeds of the 0.2 Hz eval, that lost 5 to 14 fruit a scenario (mean error -18.4 % with
-exactly 500 points, -10.7 % with equal shares; `renderloop count` on the same detections).
+points (500 up to 500 + n_init - 1) instead of exactly 500: filled to exactly 500, some
+detections get a place fewer, and a fruit seen twice through two of them falls short of
+MinPts.
 
-Which OPTICS extraction. scikit-learn offers two: `dbscan` cuts the reachability plot
-at `eps`, so a cluster is a set of points chained by core points at most 4 cm apart,
-which is the paper's wording ("the maximum distance of the cluster points to the core
-point"); `xi` (scikit-learn's default) cuts at steep valleys of the reachability plot.
-Measured on the paper scenario (seed 7, 8 rows, 3 draws) with synthetic skin points
-(centre + 0.6 radius towards the camera side, 5-30 views a fruit, 1 cm noise):
-`dbscan` counted 24 of 24 rows exactly; `xi` over-counted by 8.8 fruit a row on
-average (4 of 24 exact), because a subsampled row has MinPts 2 and xi then splits every
-fruit's cloud at small valleys. So `dbscan` with eps is the default
-(`counting.cluster_method`); both use max_eps = eps, so OPTICS never links points
-further apart than a pepper. A known limit of the paper's rule, kept on purpose: two fruit
-whose skin points come within 4 cm of each other chain into one (seen once in three
-draws of the demo scene, fruit 9.5 cm apart).
+The extraction is scikit-learn's `dbscan` cut of the reachability plot at eps (a cluster
+is a set of points chained by core points at most 4 cm apart, the paper's wording), not
+`xi`, which splits a subsampled fruit's cloud at small valleys; both use max_eps = eps.
+Two fruit whose skin points come within 4 cm of each other chain into one: the paper's
+rule, kept. The measurements behind each choice are in docs/stages/counting.md.
 """
 
 from __future__ import annotations

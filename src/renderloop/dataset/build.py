@@ -26,19 +26,22 @@ import numpy as np
 from PIL import Image
 
 from renderloop.config import SensorConfig
+from renderloop.dataset.clutter import clutter_objects, standing_boards
 from renderloop.dataset.coco import write_coco
 from renderloop.dataset.labels import pepper_boxes, pepper_vertices
 from renderloop.dataset.preview import draw_preview
 from renderloop.dataset.scenes import DatasetSpec, dataset_scene
-from renderloop.dataset.views import random_view
+from renderloop.dataset.views import close_view, random_view
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_bytes, write_json
 from renderloop.render.camera import Intrinsics
 from renderloop.render.executor import COLOUR_SENSOR_STREAM, ray_session, spawnable_sys_path
 from renderloop.render.sensor import sensor_rgb
 from renderloop.rundir import ownership
+from renderloop.scene.objects import greenhouse_objects
 
 VIEW_STREAM = 0x71E3
+CLUTTER_STREAM = 0xC1A7
 JPEG_QUALITY = 95
 MANIFEST = "dataset.json"
 PREVIEW = "preview.png"
@@ -68,12 +71,17 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
     if threads:
         config = config.model_copy(update={"renderer": config.renderer.model_copy(update={"threads": threads})})
     intrinsics = Intrinsics.from_config(config.camera)
+    clutter_rng = np.random.default_rng(np.random.SeedSequence([spec.seed, CLUTTER_STREAM, scene_index]))
+    boards = standing_boards(scene, clutter_rng) if spec.clutter else []
     rng = np.random.default_rng(np.random.SeedSequence([spec.seed, VIEW_STREAM, scene_index]))
-    poses = [random_view(scene, rng, spec.distance) for _ in range(spec.views_per_scene)]  # all drawn, so a view never depends on which are done
+    # all drawn, so a view never depends on which are done
+    poses = [close_view(scene, rng, boards) if spec.close > 0 and rng.random() < spec.close
+             else random_view(scene, rng, spec.distance, boards) for _ in range(spec.views_per_scene)]
     peppers = {pepper.id: pepper for pepper in scene.peppers}
     meshes = pepper_vertices(scene)
+    objects = greenhouse_objects(scene) + (clutter_objects(scene, clutter_rng, boards) if spec.clutter else [])
     out = []
-    with CyclesRenderer(scene, config, intrinsics) as renderer:
+    with CyclesRenderer.from_objects(objects, config, intrinsics, scene.seed, scene.room, scene.environment) as renderer:
         for view in view_indices:
             frame = renderer.render(poses[view])
             index = scene_index * spec.views_per_scene + view
@@ -84,9 +92,10 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
                 "peppers": pepper_boxes(frame.mask, peppers, meshes, poses[view], intrinsics, config.camera.clip[0]),
             }
             rgb = frame.rgb
-            if spec.sensor:
-                sensor = np.random.default_rng(np.random.SeedSequence([spec.seed, COLOUR_SENSOR_STREAM, index]))
+            sensor = np.random.default_rng(np.random.SeedSequence([spec.seed, COLOUR_SENSOR_STREAM, index]))
+            if spec.sensor >= 1 or (spec.sensor > 0 and sensor.random() < spec.sensor):  # a share of 1 draws nothing
                 rgb = sensor_rgb(rgb, frame.depth, SensorConfig(enabled=True), sensor)
+                record["sensor"] = True
             out.append((index, jpeg_bytes(rgb), record))
     return out
 

@@ -5,7 +5,10 @@ bearing) whose plant shape, fruit size, colour mix, lighting and render quality 
 drawn from the dataset seed and the scene's index, so that a view can be rebuilt
 from two integers and the dataset grows without changing the images it has.
 The ranges are wider than the presets' on purpose: the detector has to see more
-variety than any one run will show it.
+variety than any one run will show it. A spec may also draw each scene's plant style
+(the 'simple' plants or the dense 'pepper' ones) and its surroundings (plain walls or
+the film greenhouse with sky and sun), so that one set holds both presets' looks; a
+spec that draws nothing new makes the scenes it always made.
 """
 
 from __future__ import annotations
@@ -22,6 +25,9 @@ from renderloop.scene.model import Scene
 
 SCENE_STREAM = 0xDA7A
 MAX_TRIES = 20
+STYLES = ("simple", "pepper")
+ENVIRONMENTS = ("plain", "film")
+CLOSE_NEAR_CLIP = 0.05  # m: the camera's near clip when views come as close as a hand's breadth
 
 
 @dataclass(frozen=True)
@@ -35,16 +41,28 @@ class DatasetSpec:
     samples: tuple[int, ...] = (2, 4, 8)  # path-tracing noise levels around the run's default, after denoising
     val_every: int = 10  # every tenth scene is held out for validation
     distance: tuple[float, float] = DISTANCE  # camera to plant axis, m: a close set adds the large fruit of a scan
-    sensor: bool = False  # each view through the colour-sensor model, its settings drawn from SensorConfig's ranges
+    sensor: float = 0.0  # share of views through the colour-sensor model, its settings drawn from SensorConfig's ranges
+    styles: tuple[str, ...] = ("simple",)  # plant styles (plants.style) a scene draws from, equally
+    environments: tuple[str, ...] = ("plain",)  # surroundings (greenhouse.environment.kind) a scene draws from, equally
+    clutter: bool = False  # distractors, mats and boards that are not peppers (dataset/clutter.py) in every scene
+    close: float = 0.0  # share of views of one fruit from 0.12-0.5 m (dataset/views.py close_view)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.distance[0] <= self.distance[1]:
             raise UserError(f"--distance {self.distance[0]} {self.distance[1]}: need 0 < near <= far")
+        for name, allowed in (("styles", STYLES), ("environments", ENVIRONMENTS)):
+            chosen = getattr(self, name)
+            if not chosen or any(choice not in allowed for choice in chosen) or len(set(chosen)) != len(chosen):
+                raise UserError(f"--{name} {','.join(chosen)}: choose one or more of {', '.join(allowed)}, each once")
+        for name in ("sensor", "close"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise UserError(f"--{name} {getattr(self, name)}: a share of the views, between 0 and 1")
 
     @classmethod
     def manifest_defaults(cls) -> dict:
         """Fields that a manifest of an older version may lack, with the value its images were made with."""
-        return {"distance": list(DISTANCE), "sensor": False}
+        return {"distance": list(DISTANCE), "sensor": 0.0, "styles": ["simple"], "environments": ["plain"],
+                "clutter": False, "close": 0.0}
 
     def manifest(self) -> dict:
         return {"format_version": 1, **{key: list(v) if isinstance(v, tuple) else v for key, v in asdict(self).items()}}
@@ -53,16 +71,26 @@ class DatasetSpec:
         return scene_index % self.val_every == self.val_every - 1
 
 
+def _choice(rng: np.random.Generator, options: tuple[str, ...]) -> str:
+    """One of the options, equally likely; a single option draws nothing, so older datasets keep their scenes."""
+    return options[int(rng.integers(len(options)))] if len(options) > 1 else options[0]
+
+
 def _scene_overrides(rng: np.random.Generator, spec: DatasetSpec) -> dict:
     leaves_low = int(rng.integers(18, 40))
     leaf_low = float(rng.uniform(0.06, 0.09))
     length_low = float(rng.uniform(0.055, 0.08))
     colors = {"red": rng.uniform(0.1, 1.0), "yellow": rng.uniform(0.0, 1.0),
               "orange": rng.uniform(0.0, 1.0), "green": rng.uniform(0.1, 0.8)}
+    style, environment = _choice(rng, spec.styles), _choice(rng, spec.environments)
+    camera = {"width": spec.width, "height": spec.height}
+    if spec.close > 0:
+        camera["clip"] = (CLOSE_NEAR_CLIP, 5.0)
     return {
         "greenhouse": {"size": (7.0, 6.0, 3.5), "tables": [(-1.0, 0.0), (1.0, 0.0)], "plants_per_table": 4,
-                       "workstation_center": (0.0, -2.3)},
+                       "workstation_center": (0.0, -2.3), "environment": {"kind": environment}},
         "plants": {
+            "style": style,
             "bearing": None,
             "leaves": (leaves_low, leaves_low + int(rng.integers(8, 30))),
             "leaf_length": (leaf_low, leaf_low + float(rng.uniform(0.03, 0.07))),
@@ -73,9 +101,18 @@ def _scene_overrides(rng: np.random.Generator, spec: DatasetSpec) -> dict:
                 "colors": {name: float(weight) for name, weight in colors.items()},
             },
         },
-        "camera": {"width": spec.width, "height": spec.height},
+        "camera": camera,
         "renderer": {"backend": "cycles", "samples": int(rng.choice(spec.samples)), "denoise": True},
     }
+
+
+def _fruitless_neighbours(scene: Scene) -> Scene:
+    """The scene with no fruit on the neighbouring rows' plants: those are drawn but in no mask, so in a training
+    image they would be peppers labelled as background."""
+    if scene.environment is None:
+        return scene
+    prototypes = [prototype.model_copy(update={"fruit": []}) for prototype in scene.environment.prototypes]
+    return scene.model_copy(update={"environment": scene.environment.model_copy(update={"prototypes": prototypes})})
 
 
 def dataset_scene(spec: DatasetSpec, scene_index: int) -> tuple[Config, Scene]:
@@ -86,7 +123,7 @@ def dataset_scene(spec: DatasetSpec, scene_index: int) -> tuple[Config, Scene]:
         data = deep_merge(base, {**_scene_overrides(rng, spec), "seed": int(rng.integers(2**62))})
         config = validate(data, f"dataset scene {scene_index}")
         try:
-            return config, generate_scene(config)
+            return config, _fruitless_neighbours(generate_scene(config))
         except UserError:
             continue
     raise UserError(f"dataset scene {scene_index}: no fruit layout fits after {MAX_TRIES} draws")

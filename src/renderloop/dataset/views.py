@@ -4,17 +4,21 @@ The flown camera sees a plant from 0.3-0.5 m in its aisle; training views spread
 distance, height, bearing and aim around that (and add a little roll, which a
 tilting UAV gives its camera), so the detector meets fruit at every size, at the
 image edges and half hidden, never only centred. A view is redrawn when the camera
-would sit inside a plant's box, a table or below the table top.
+would sit inside a plant's box, a table or below the table top, or inside or behind
+an obstacle (the training set's standing boards). Close views look at one fruit from
+a hand's breadth to half a metre, from any side, as a close scan or a photo does.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
 from renderloop.robot.kinematics import look_at
 from renderloop.scene.model import Scene
+from renderloop.scene.objects import Box
 
 DISTANCE = (0.3, 1.2)  # m from the plant's axis, horizontal; drawn closer more often, as scans are
 BEARING = math.radians(60.0)  # spread around the row's normal
@@ -24,6 +28,13 @@ AIM = 0.3  # fraction of the canopy box the aim point may leave its centre by
 ROLL = math.radians(8.0)
 CLEARANCE = 0.05  # m between the camera and any plant box or table
 MAX_TRIES = 200
+# A close view looks at one fruit from a hand's breadth to half a metre, from any side and height, rolled as a
+# hand-held camera is: the fruit fills a tenth to most of the frame, as in a close scan or a photo.
+CLOSE_DISTANCE = (0.12, 0.5)  # m from the fruit's centre
+CLOSE_ELEVATION = math.radians(60.0)  # up to this far above (or a third of it below) the fruit
+CLOSE_BEARING = math.radians(80.0)  # spread around the direction from the plant's axis out to the fruit
+CLOSE_ROLL = math.radians(35.0)
+CLOSE_AIM = 0.25  # of the distance: the aim point's spread about the fruit's centre
 
 
 def _roll(angle: float) -> np.ndarray:
@@ -31,10 +42,23 @@ def _roll(angle: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def _blocked(scene: Scene, position: np.ndarray) -> bool:
-    for plant in scene.plants:
-        if plant.bounds.contains(tuple(position), CLEARANCE):
-            return True
+def _through(start: np.ndarray, end: np.ndarray, obstacle: Box) -> bool:
+    """Whether the segment from `start` to `end` meets the box (grown by CLEARANCE): the slab test."""
+    low = np.asarray(obstacle.center) - obstacle.half - CLEARANCE
+    high = np.asarray(obstacle.center) + obstacle.half + CLEARANCE
+    step = end - start
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t0, t1 = (low - start) / step, (high - start) / step
+    inside = (start >= low) & (start <= high)
+    parallel = step == 0
+    if np.any(parallel & ~inside):
+        return False
+    near = np.where(parallel, -np.inf, np.minimum(t0, t1)).max()
+    far = np.where(parallel, np.inf, np.maximum(t0, t1)).min()
+    return bool(near <= far and far >= 0.0 and near <= 1.0)
+
+
+def _on_table(scene: Scene, position: np.ndarray) -> bool:
     for row in scene.rows:
         center, size = np.asarray(row.table.center), np.asarray(row.table.size)
         half = size / 2 + CLEARANCE
@@ -43,8 +67,20 @@ def _blocked(scene: Scene, position: np.ndarray) -> bool:
     return False
 
 
-def random_view(scene: Scene, rng: np.random.Generator, distance_range: tuple[float, float] = DISTANCE) -> np.ndarray:
-    """T_world_optical of one random view of a random plant, `distance_range` m (horizontal) from its axis."""
+def _blocked(scene: Scene, position: np.ndarray) -> bool:
+    return any(plant.bounds.contains(tuple(position), CLEARANCE) for plant in scene.plants) or _on_table(scene, position)
+
+
+def _rolled(camera: np.ndarray, target: np.ndarray, roll: float) -> np.ndarray:
+    pose = look_at(camera, target)
+    pose[:3, :3] = pose[:3, :3] @ _roll(roll)
+    return pose
+
+
+def random_view(scene: Scene, rng: np.random.Generator, distance_range: tuple[float, float] = DISTANCE,
+                obstacles: Sequence[Box] = ()) -> np.ndarray:
+    """T_world_optical of one random view of a random plant, `distance_range` m (horizontal) from its axis,
+    neither inside nor looking through any of the `obstacles`."""
     for _ in range(MAX_TRIES):
         plant = scene.plants[int(rng.integers(len(scene.plants)))]
         low, high = np.asarray(plant.bounds.min), np.asarray(plant.bounds.max)
@@ -60,7 +96,27 @@ def random_view(scene: Scene, rng: np.random.Generator, distance_range: tuple[fl
         target = center + rng.uniform(-AIM, AIM, 3) * size
         if target[2] - camera[2] > math.tan(MAX_UPWARD) * math.hypot(*(target[:2] - camera[:2])):
             continue
-        pose = look_at(camera, target)
-        pose[:3, :3] = pose[:3, :3] @ _roll(rng.uniform(-ROLL, ROLL))
-        return pose
+        if any(_through(camera, target, obstacle) for obstacle in obstacles):
+            continue
+        return _rolled(camera, target, rng.uniform(-ROLL, ROLL))
     raise RuntimeError("no unobstructed camera position found around the plants")
+
+
+def close_view(scene: Scene, rng: np.random.Generator, obstacles: Sequence[Box] = ()) -> np.ndarray:
+    """T_world_optical of a view of one random fruit from close by (CLOSE_DISTANCE); the camera may be among the
+    plant's leaves, never in a table, an obstacle or looking through one."""
+    for _ in range(MAX_TRIES):
+        pepper = scene.peppers[int(rng.integers(len(scene.peppers)))]
+        plant = next(p for p in scene.plants if p.id == pepper.plant)
+        center = np.asarray(pepper.center)
+        out = center[:2] - np.asarray(plant.position[:2])
+        heading = math.atan2(out[1], out[0]) + rng.uniform(-CLOSE_BEARING, CLOSE_BEARING)
+        elevation = rng.uniform(-CLOSE_ELEVATION / 3, CLOSE_ELEVATION)
+        distance = rng.uniform(*CLOSE_DISTANCE)
+        camera = center + distance * np.array([math.cos(elevation) * math.cos(heading),
+                                               math.cos(elevation) * math.sin(heading), math.sin(elevation)])
+        target = center + rng.uniform(-CLOSE_AIM, CLOSE_AIM, 3) * distance
+        if _on_table(scene, camera) or camera[2] < CLEARANCE or any(_through(camera, target, o) for o in obstacles):
+            continue
+        return _rolled(camera, target, rng.uniform(-CLOSE_ROLL, CLOSE_ROLL))
+    raise RuntimeError("no unobstructed close view of a fruit found")

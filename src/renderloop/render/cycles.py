@@ -119,15 +119,17 @@ class CyclesRenderer:
         intrinsics: Intrinsics,
         seed: int = 0,
         room: Sequence[float] = DEFAULT_ROOM,
+        environment: Environment | None = None,
     ) -> CyclesRenderer:
-        """A renderer of arbitrary meshes (for tests and tools): SceneObjects, or plain
-        (name, mesh, sRGB colour, pass_index) tuples drawn with a plain Principled material.
-        Lighting is the greenhouse's, drawn from `seed`; `room` only sizes the roof fill."""
+        """A renderer of arbitrary meshes (a scene's objects and more, for the training set, tests and tools):
+        SceneObjects, or plain (name, mesh, sRGB colour, pass_index) tuples drawn with a plain Principled material.
+        Lighting is the greenhouse's, drawn from `seed` (`room` only sizes the roof fill), or the film greenhouse's
+        light of `environment`; with a scene's seed, room and environment it lights as a renderer of the scene."""
         items = [obj if isinstance(obj, SceneObject) else SceneObject(obj[0], obj[1], rgb=tuple(obj[2]), pass_index=int(obj[3]))
                  for obj in objects]
         renderer = cls.__new__(cls)
         rng = np.random.default_rng(np.random.SeedSequence([seed, LIGHTING_STREAM]))
-        renderer._setup(config, intrinsics, seed, items, rng, room)
+        renderer._setup(config, intrinsics, seed, items, rng, room, environment)
         return renderer
 
     # -- construction -------------------------------------------------------------------------

@@ -321,8 +321,30 @@ def film_material(name: str = "film") -> bpy.types.Material:
     return material
 
 
+def pattern_material(name: str) -> bpy.types.Material:
+    """The object's colour and a second one (its hue turned half round, darker) in a pattern: irregular stripes
+    (wood grain, woven cloth) for an alpha under 0.5, checks (tiles, gingham) above; the alpha's place within
+    its half sets the pattern's scale, 3 to 40 per metre."""
+    look = MATERIALS[name]
+    material, t = _new_material(name)
+    info = t.node("ShaderNodeObjectInfo")
+    color, alpha = info.outputs["Color"], info.outputs["Alpha"]
+    checks = t.math("GREATER_THAN", alpha, 0.5)
+    scale = t.map_range(t.math("FRACT", t.math("MULTIPLY", alpha, 2.0)), 0.0, 1.0, 3.0, 40.0)
+    coords = t.node("ShaderNodeTexCoord").outputs["Object"]
+    stripes = t.node("ShaderNodeTexWave", {"Vector": coords, "Scale": scale, "Distortion": 4.0, "Detail": 2.0}).outputs["Fac"]
+    checker = t.node("ShaderNodeTexChecker", {"Vector": coords, "Scale": scale}).outputs["Fac"]
+    factor = t.math("ADD", stripes, t.math("MULTIPLY", checks, t.math("SUBTRACT", checker, stripes)))
+    # Hue 0.5 is no change, so 1.0 turns the hue half round
+    second = t.node("ShaderNodeHueSaturation", {"Hue": 1.0, "Saturation": 1.0, "Value": 0.45, "Fac": 1.0, "Color": color})
+    color = t.mix_rgb(factor, color, second.outputs[0])
+    t.output(_principled(t, _varied(t, color, look.variation_scale, look.variation), look.roughness, look))
+    return material
+
+
 RECIPES = {"plain": plain_material, "leaf": leaf_material, "flower": flower_material, "pepper": pepper_material,
-           "pepper_leaf": pepper_leaf_material, "fruit": fruit_material, "film": film_material}
+           "pepper_leaf": pepper_leaf_material, "fruit": fruit_material, "film": film_material,
+           "pattern": pattern_material}
 
 
 def greenhouse_materials() -> dict[str, bpy.types.Material]:

@@ -24,7 +24,7 @@ __all__ = ["Material", "MATERIALS", "material", "display_rgba", "Daylight", "DAY
 
 RGB = tuple[float, float, float]
 RGBA = tuple[float, float, float, float]
-Recipe = Literal["plain", "leaf", "flower", "pepper", "pepper_leaf", "fruit", "film"]
+Recipe = Literal["plain", "leaf", "flower", "pepper", "pepper_leaf", "fruit", "film", "pattern"]
 
 
 @dataclass(frozen=True)
@@ -124,6 +124,13 @@ MATERIALS: dict[str, Material] = {
     "string": Material("plain", (0.86, 0.84, 0.76), roughness=0.7),
     "ground_cover": Material("plain", (0.8, 0.81, 0.79), roughness=0.85, variation=0.1, variation_scale=1.5),
     "trap": Material("plain", (0.93, 0.84, 0.08), roughness=0.25, specular=0.6),
+    # the training set's clutter (dataset/clutter.py): things that are not peppers, in their object's colour
+    "clutter_gloss": Material("plain", display=(0.6, 0.3, 0.2, 1.0), roughness=0.12, specular=0.6, coat=0.4,
+                              variation=0.08, variation_scale=25.0),  # fruit, cans, plastic
+    "clutter_matte": Material("plain", display=(0.5, 0.45, 0.35, 1.0), roughness=0.8, variation=0.25,
+                              variation_scale=30.0),  # cardboard, stone, fuzzy skins
+    "clutter_pattern": Material("pattern", display=(0.6, 0.5, 0.4, 1.0), roughness=0.6, variation=0.1,
+                                variation_scale=8.0),  # cloth, boards, tiles: the object's colour in stripes or checks
     # the physics world's own: a plant's collision volume, shown see-through, and the robot
     "canopy": Material(None, display=(0.2, 0.55, 0.2, 0.35)),
     "uav_body": Material(None, display=(0.15, 0.15, 0.17, 1.0)),

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 __all__ = ["Mesh", "merge", "frame_from_axis", "tube", "pepper", "leaf", "LeafShape", "pepper_leaf", "calyx", "flower",
-           "pot", "box"]
+           "pot", "box", "ellipsoid"]
 
 
 @dataclass(frozen=True)
@@ -498,3 +498,19 @@ def box(center: ArrayLike, size: ArrayLike) -> Mesh:
     faces = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
                       [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]])
     return Mesh(verts, faces)
+
+
+def ellipsoid(center: ArrayLike, radii: ArrayLike, rotation: ArrayLike | None = None, rings: int = 12,
+              segments: int = 24) -> Mesh:
+    """Closed ellipsoid with semi-axes `radii` along the columns of `rotation` (identity: x, y, z), centred on
+    `center`: an apple, a tomato, a lemon, a stone."""
+    if rings < 2 or segments < 3:
+        raise ValueError(f"ellipsoid needs at least 2 rings and 3 segments, got {rings} and {segments}")
+    polar = np.linspace(np.pi, 0.0, rings + 2)[1:-1]  # bottom pole to top pole: the interior on the profile's left
+    azimuth = np.linspace(0.0, 2 * np.pi, segments, endpoint=False)
+    ring = np.stack([np.outer(np.sin(polar), np.cos(azimuth)), np.outer(np.sin(polar), np.sin(azimuth)),
+                     np.repeat(np.cos(polar)[:, None], segments, axis=1)], axis=-1).reshape(-1, 3)
+    unit = np.concatenate([[[0.0, 0.0, -1.0]], ring, [[0.0, 0.0, 1.0]]])
+    r = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64).reshape(3, 3)
+    return Mesh((unit * np.asarray(radii, dtype=np.float64)) @ r.T + np.asarray(center, dtype=np.float64),
+                _closed_faces(rings, segments))

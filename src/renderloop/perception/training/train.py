@@ -25,6 +25,7 @@ from renderloop.errors import UserError
 from renderloop.io.atomic import atomic_path, write_json
 from renderloop.perception.detector import CLASSES
 from renderloop.perception.training.data import PepperBoxes, collate
+from renderloop.perception.training.from_onnx import freeze_batch_norms, weights_from_onnx
 from renderloop.perception.training.ssd import build_model, export_onnx
 from renderloop.perception.training.validate import coco_map
 
@@ -88,8 +89,11 @@ def _load_checkpoint(path: Path, device: torch.device) -> dict:
     return state
 
 
-def _initial_weights(path: Path) -> dict:
-    """The model weights of an earlier run's checkpoint: fine-tuning on a grown dataset starts there."""
+def _initial_weights(path: Path, model: torch.nn.Module) -> dict:
+    """The model weights of an earlier run's checkpoint, or of a renderloop ONNX detector (the shipped one, say):
+    fine-tuning on a grown or new dataset starts there."""
+    if path.suffix == ".onnx":
+        return weights_from_onnx(path, model)
     try:
         return torch.load(path, map_location="cpu", weights_only=True)["model"]
     except (OSError, RuntimeError, KeyError, TypeError, EOFError, pickle.UnpicklingError) as error:
@@ -123,13 +127,14 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
         generator=torch.Generator().manual_seed(settings.seed),
     )
     model = build_model()
+    frozen_norms = init is not None and Path(init).suffix == ".onnx"  # its batch norms are folded: keep them as they are
     if init is not None:
-        model.load_state_dict(_initial_weights(Path(init)))
+        model.load_state_dict(_initial_weights(Path(init), model))
     model = model.to(run_device)
     optimizer = torch.optim.AdamW(model.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _schedule(settings, len(loader)))
     schedule = {k: v for k, v in asdict(settings).items() if k != "max_steps"}  # what a resumed run must share
-    record = {"settings": schedule, "init": str(init) if init else None, "datasets": [str(d) for d in datasets],
+    record = {"settings": schedule, "init": str(init) if init else None, "frozen_batch_norms": frozen_norms, "datasets": [str(d) for d in datasets],
               "train_images": len(train_set), "val_images": [len(v) for v in val_sets], "classes": list(CLASSES), "history": []}
     start_epoch = 0
     if checkpoint_path.is_file():
@@ -147,6 +152,8 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
     steps = start_epoch * len(loader)
     for epoch in range(start_epoch, settings.epochs):
         model.train()
+        if frozen_norms:
+            freeze_batch_norms(model)
         began, seen, losses = time.perf_counter(), 0, []
         for images, targets in _batches(loader):
             images = [image.to(run_device) for image in images]

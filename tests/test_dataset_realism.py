@@ -1,0 +1,115 @@
+"""The training set's realism: both plant styles and surroundings, clutter that is not a pepper, close views."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from renderloop.dataset.build import build_dataset
+from renderloop.dataset.clutter import PEPPER_CLEARANCE, clutter_objects, standing_boards
+from renderloop.dataset.scenes import DatasetSpec, dataset_scene
+from renderloop.dataset.views import CLOSE_DISTANCE, _through, close_view, random_view
+from renderloop.errors import UserError
+from renderloop.scene.objects import Box
+
+REAL = DatasetSpec(seed=21, styles=("simple", "pepper"), environments=("plain", "film"), clutter=True, close=0.5, sensor=0.5)
+
+
+def test_scenes_draw_both_plant_styles_and_both_surroundings_and_the_neighbours_bear_no_fruit():
+    drawn = [dataset_scene(REAL, index) for index in range(6)]
+    assert {config.plants.style for config, _ in drawn} == {"simple", "pepper"}
+    assert {config.greenhouse.environment.kind for config, _ in drawn} == {"plain", "film"}
+    for config, scene in drawn:
+        assert (scene.environment is not None) == (config.greenhouse.environment.kind == "film")
+        if scene.environment is not None:
+            assert scene.environment.prototypes and not any(p.fruit for p in scene.environment.prototypes)
+        assert config.camera.clip[0] == pytest.approx(0.05)  # close views need a near clip closer than the scan's
+    # a spec that draws nothing new builds the scenes it always did
+    plain = dataset_scene(DatasetSpec(seed=21), 0)
+    assert plain[0].plants.style == "simple" and plain[1].environment is None and plain[0].camera.clip[0] == 0.2
+
+
+def test_clutter_keeps_clear_of_every_pepper_and_carries_no_instance_id():
+    _, scene = dataset_scene(DatasetSpec(seed=4), 1)
+    centres, radii = np.array([p.center for p in scene.peppers]), np.array([p.radius for p in scene.peppers])
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        boards = standing_boards(scene, rng)
+        objects = clutter_objects(scene, rng, boards)
+        assert len(objects) >= 7 and all(o.pass_index == 0 and o.material.startswith("clutter_") for o in objects)
+        for thing in (o for o in objects if o.name.startswith("clutter_") and o.name[8:].isdigit()):
+            vertices = thing.mesh.vertices
+            gap = np.linalg.norm(vertices[:, None, :] - centres[None], axis=2).min(axis=0) - radii
+            assert gap.min() > PEPPER_CLEARANCE - 1e-9
+        for board in boards:
+            low, high = np.asarray(board.center) - board.half, np.asarray(board.center) + board.half
+            for plant in scene.plants:
+                apart = (low > np.asarray(plant.bounds.max)) | (high < np.asarray(plant.bounds.min))
+                assert apart.any()
+
+
+def test_a_segment_through_a_box_meets_it_and_one_beside_it_does_not():
+    board = Box("board", (0.0, 0.0, 1.0), (0.01, 0.5, 0.5))
+    assert _through(np.array([-1.0, 0.0, 1.0]), np.array([1.0, 0.2, 1.2]), board)
+    assert not _through(np.array([-1.0, 0.0, 1.0]), np.array([-0.5, 0.0, 1.0]), board)  # ends before it
+    assert not _through(np.array([-1.0, 0.8, 1.0]), np.array([1.0, 0.8, 1.0]), board)  # passes beside it
+    assert _through(np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.1, 1.0]), board)  # starts inside
+
+
+def test_close_views_look_at_a_fruit_from_a_hands_breadth_to_half_a_metre_never_through_a_board():
+    _, scene = dataset_scene(DatasetSpec(seed=4), 1)
+    rng = np.random.default_rng(7)
+    boards = standing_boards(scene, np.random.default_rng(3)) + [Box("wall", (-1.0, 0.0, 1.0), (0.01, 3.0, 1.0))]
+    centres = np.array([p.center for p in scene.peppers])
+    for _ in range(100):
+        pose = close_view(scene, rng, boards)
+        camera = pose[:3, 3]
+        local = (centres - camera) @ pose[:3, :3]  # the fruit in the optical frame
+        near = np.linalg.norm(centres - camera, axis=1)
+        ahead = np.abs(local[:, :2]).max(axis=1) < 0.5 * local[:, 2]  # within about 27 degrees of the optical axis
+        looked_at = np.flatnonzero(ahead & (near >= CLOSE_DISTANCE[0] - 1e-9) & (near <= CLOSE_DISTANCE[1] + 1e-9))
+        assert looked_at.size
+        assert any(not any(_through(camera, centres[k], board) for board in boards) for k in looked_at)
+    for _ in range(50):
+        camera = random_view(scene, rng, obstacles=boards)[:3, 3]
+        assert not any(_through(camera, camera, board) for board in boards)  # a point segment: inside the board
+
+
+def test_a_cluttered_dataset_of_close_views_labels_peppers_only(tmp_path: Path):
+    spec = dataclasses.replace(REAL, width=64, height=48, views_per_scene=2, samples=(1,), val_every=2,
+                               styles=("pepper",), environments=("plain",), close=1.0)
+    assert build_dataset(tmp_path, 2, spec) == 2
+    _, scene = dataset_scene(spec, 0)
+    ids = {pepper.id for pepper in scene.peppers}
+    for name in ("000000.json", "000001.json"):
+        record = json.loads((tmp_path / "labels" / name).read_text())
+        assert record["peppers"] and {p["pepper_id"] for p in record["peppers"]} <= ids
+    coco = json.loads((tmp_path / "annotations" / "instances_train.json").read_text())
+    assert coco["annotations"]
+    manifest = json.loads((tmp_path / "dataset.json").read_text())
+    assert manifest["clutter"] is True and manifest["close"] == 1.0 and manifest["styles"] == ["pepper"]
+
+
+def test_an_older_manifest_without_the_realism_fields_is_the_plain_dataset(tmp_path: Path):
+    tiny = DatasetSpec(seed=3, width=64, height=48, views_per_scene=2, samples=(1,), val_every=2)
+    build_dataset(tmp_path, 1, tiny)
+    manifest = tmp_path / "dataset.json"
+    older = {k: v for k, v in json.loads(manifest.read_text()).items()
+             if k not in ("styles", "environments", "clutter", "close")} | {"sensor": False}
+    manifest.write_text(json.dumps(older))
+    assert build_dataset(tmp_path, 1, tiny) == 0
+    with pytest.raises(UserError, match="other settings"):
+        build_dataset(tmp_path, 1, dataclasses.replace(tiny, clutter=True))
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"styles": ("fern",)}, "--styles fern"), ({"environments": ()}, "--environments"),
+    ({"styles": ("pepper", "pepper")}, "each once"), ({"close": 1.5}, "--close 1.5"), ({"sensor": -0.1}, "--sensor"),
+])
+def test_a_bad_dataset_choice_is_one_line_naming_it(change, words):
+    with pytest.raises(UserError, match=words):
+        DatasetSpec(**change)
