@@ -60,6 +60,21 @@ def test_the_mission_looks_again_at_uncertain_plants_from_the_views_it_logs(adap
             assert r.before.high - r.before.low > 0 and "interval" in r.why  # only an uncertain plant is looked at again
 
 
+def test_the_harvest_plan_is_redrawn_at_each_decision_from_the_latest_counts(adaptive_run: Path):
+    mission = files.read_mission(adaptive_run)
+    min_ripe = files.read_config(adaptive_run).counting.harvest_min_ripe
+    times = [update.time for update in mission.harvest]
+    assert times == sorted(times)
+    assert {plant.row for plant in mission.plants} == {update.row for update in mission.harvest if update.round == 0}
+    assert {r.decided_at for plant in mission.plants for r in plant.rounds} <= set(times)  # each round's decision drew one
+    assert [update.plants_counted for update in mission.harvest][-1] == len(mission.plants)
+    latest = {plant.id: plant.rounds[-1].after.estimate if plant.rounds else plant.first_pass.estimate
+              for plant in mission.plants}  # a round's `after` is read at the decision after it, which drew a plan
+    chosen = sorted(pid for pid, ripe in latest.items() if ripe >= min_ripe)
+    assert sorted(mission.harvest[-1].stops) == chosen
+    assert mission.harvest[-1].expected_ripe == sum(latest[pid] for pid in chosen)
+
+
 def test_the_mission_flies_its_views_without_touching_anything(adaptive_run: Path):
     flight = files.read_flight(adaptive_run)
     assert not np.any(flight["contacts"] > 0)

@@ -6,7 +6,8 @@ online counter for each plant's count interval, and for every plant that is not 
 (`renderloop.loop.nbv`) through the voxel map its depth frames built. It flies them by replanning from where the
 reference is, checked clear of the greenhouse, with one frame at each view and the periodic frames held back, then
 rejoins the scan at the next row. When a round's frames are in, the plants are asked again, up to
-`mission.adaptive.rounds` times or until a plant's flight-time budget is spent.
+`mission.adaptive.rounds` times or until a plant's flight-time budget is spent. After every decision the harvest
+plan is drawn again from the latest estimates of the plants counted so far.
 
 Decisions are taken at those instants of simulated time only, and wait for the frames they read, so the mission
 is the same whatever the renderers' speed.
@@ -20,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from renderloop.config import Config
+from renderloop.counting.harvest import plan_harvest
 from renderloop.counting.online import OnlineCounter
 from renderloop.counting.uncertainty import PlantUncertainty, Uncertainty
 from renderloop.errors import UserError
@@ -40,6 +42,7 @@ from renderloop.render.camera import Intrinsics
 from renderloop.rundir import files, names
 from renderloop.rundir.models import (
     Estimate,
+    HarvestUpdate,
     Mission,
     MissionPlant,
     MissionRound,
@@ -84,6 +87,8 @@ class AdaptiveMission:
         self.logs = {plant.id: _PlantLog(plant, self.settings.budget_s) for plant in self.scene.plants}
         self._candidate_views: dict[int, list[Candidate]] = {}
         self.view_frames: list[tuple[float, dict]] = []  # (trigger time, view record) to match frames to at the end
+        self.ripe: dict[int, int] = {}  # plant id -> its latest ripe estimate, for the plants decided so far
+        self.harvest: list[HarvestUpdate] = []
         self.row_end = {}  # row id -> static index of its last scan waypoint
         for index, waypoint in enumerate(self.static):
             if waypoint.kind == "scan":
@@ -112,6 +117,7 @@ class AdaptiveMission:
         plants = [plant for plant in self.scene.plants if plant.row == decision.row]
         uncertainty = self._uncertainty(plants)
         state = {plant.id: _estimate(uncertainty.plants[plant.id]) for plant in plants}
+        self._update_harvest(decision, state)
         views: list[tuple[Plant, list, str]] = []
         for plant in self._nearest_first(plants):
             log, estimate = self.logs[plant.id], state[plant.id]
@@ -133,6 +139,14 @@ class AdaptiveMission:
             views.append((plant, chosen, self._why(estimate)))
         if views:
             self._fly(decision, views, state)
+
+    def _update_harvest(self, decision: _Decision, state: dict[int, Estimate]) -> None:
+        """The harvest plan from every plant's latest estimate: a grower's plan as the counts settle."""
+        self.ripe.update({plant_id: estimate.estimate for plant_id, estimate in state.items()})
+        plan = plan_harvest(self.scene, self.ripe, self.config.counting.harvest_min_ripe)
+        self.harvest.append(HarvestUpdate(time=round(self.sim.t, 6), row=decision.row, round=decision.round,
+                                          plants_counted=len(self.ripe), stops=[stop["id"] for stop in plan["stops"]],
+                                          expected_ripe=plan["total_expected_ripe"], total_distance=plan["total_distance"]))
 
     def _uncertainty(self, plants: list[Plant]) -> Uncertainty:
         """The counter's intervals, the plants' unseen canopy from their voxel maps."""
@@ -239,7 +253,7 @@ class AdaptiveMission:
         at_views = {view["frame"] for _, view in self.view_frames if view["frame"] is not None}
         return Mission(kind="adaptive", settings=self.settings.model_dump(mode="json"), frames=len(timestamps),
                        first_pass_frames=len(timestamps) - len(at_views), flight_time_s=round(flight_time, 6),
-                       plants=plants)
+                       plants=plants, harvest=self.harvest)
 
 
 def _estimate(plant: PlantUncertainty) -> Estimate:

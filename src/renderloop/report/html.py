@@ -152,7 +152,20 @@ def _mission_section(mission: Mission, counts: Counts) -> str:
             f"{sum(bool(p.rounds) for p in mission.plants)} of {len(mission.plants)} plants from {added} added views "
             f"({mission.frames} frames in all, {html.escape(words.seconds(mission.flight_time_s))} of flight). "
             "The interval is the counter's 90 % range for the plant's ripe count.</p>"
-            + _table(headers, rows, off))
+            + _table(headers, rows, off) + _harvest_updates(mission))
+
+
+def _harvest_updates(mission: Mission) -> str:
+    """The harvest plan after each decision of the mission, as the counts settled."""
+    if not mission.harvest:
+        return ""
+    rows = [[words.seconds(update.time), update.row, "first pass" if update.round == 0 else f"round {update.round}",
+             update.plants_counted, ", ".join(map(str, update.stops)) or "none", update.expected_ripe,
+             f"{update.total_distance:.1f} m"] for update in mission.harvest]
+    headers = ["At", "Row decided", "After", "Plants counted", "Plants to bring in, in order", "Ripe fruit expected",
+               "Round trip"]
+    return ("<p>The harvest plan as the counts settled: after each decision, the plants counted so far that are "
+            "expected to carry enough ripe fruit, in the order to bring them in.</p>" + _table(headers, rows))
 
 
 def _flight_sentence(flight: dict[str, np.ndarray]) -> str:

@@ -224,6 +224,18 @@ class MissionPlant(FileModel):
     fallback: str | None  # why the plant kept the first pass alone (no reachable view, no budget, ...)
 
 
+class HarvestUpdate(FileModel):
+    """The harvest plan as it stood after a decision: from the ripe estimates of the plants counted so far."""
+
+    time: Finite  # simulation s of the decision
+    row: int  # the row just decided
+    round: Count  # 0: after the row's first pass; n: after its n-th round of added views
+    plants_counted: Count  # plants whose row has been decided at least once
+    stops: list[int]  # plant ids in visiting order (harvest.json's rule)
+    expected_ripe: Count
+    total_distance: Annotated[float, Field(ge=0, allow_inf_nan=False)]  # m
+
+
 class Mission(FileModel):
     """`mission.json`: what the adaptive mission decided, plant by plant (`renderloop run --mission adaptive`)."""
 
@@ -233,3 +245,4 @@ class Mission(FileModel):
     first_pass_frames: Count
     flight_time_s: Finite  # s, the whole mission (the hover at its end not included)
     plants: list[MissionPlant]
+    harvest: list[HarvestUpdate] = []  # the plan after each decision, as the counts settled
