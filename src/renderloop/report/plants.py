@@ -88,6 +88,11 @@ def _jpeg(image: Image.Image) -> str:
 
 def draw_view(run_dir: Path, view: View, width: int = CARD_WIDTH) -> str:
     """The frame with its detections and the plant's true fruit drawn, as a JPEG data URI."""
+    return _jpeg(drawn_view(run_dir, view, width))
+
+
+def drawn_view(run_dir: Path, view: View, width: int = CARD_WIDTH) -> Image.Image:
+    """The frame with its detections and the plant's true fruit drawn, `width` px wide."""
     image = Image.fromarray(read_png(Path(run_dir) / view.frame.image, np.uint8)).convert("RGB")
     scale = width / image.width
     image = image.resize((width, round(image.height * scale)), Image.Resampling.BILINEAR)
@@ -99,7 +104,7 @@ def draw_view(run_dir: Path, view: View, width: int = CARD_WIDTH) -> str:
         box = [v * scale for v in detection.bbox]
         draw.rectangle(box, outline=DETECTION[detection.label], width=2)
         draw.text((box[0] + 3, box[1] + 2), f"{detection.score:.2f}", fill=DETECTION[detection.label], font=font)
-    return _jpeg(image)
+    return image
 
 
 def _count_table(estimate: int, truth: int, unripe_estimate: int, unripe_truth: int) -> str:
