@@ -1,6 +1,10 @@
 """The docs' picture of the greenhouse environment: one scan camera view in Cycles, 'plain' beside 'film'.
 
     python scripts/environment_picture.py --out docs/images/environment.jpg [--samples 16] [--seed 0] [--plant 2]
+    python scripts/environment_picture.py --out /tmp/side_by_side.jpg --real ../shared/real/greenhouse-unlabelled
+
+`--real FOLDER` adds a third panel, a photo of that folder (the first in name order, centre-cropped to 4:3, at
+the same size), to compare renders with reality: such a picture stays outside the repository, as the photos do.
 
 The greenhouse preset ('pepper' plants) with `greenhouse.environment.kind` plain and film: the same scanned
 plants and fruit, seen from the same pose, a waypoint of the planned scan (the first of the plant's ellipse
@@ -44,12 +48,19 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=16)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--plant", type=int, default=2)
+    parser.add_argument("--real", type=Path, help="a folder of real photos: one beside the renders")
     args = parser.parse_args()
     gap = 6
-    canvas = Image.new("RGB", (2 * WIDTH + gap, HEIGHT), "white")
-    for column, kind in enumerate(("plain", "film")):
-        panel = Image.fromarray(render(kind, args.seed, args.plant, args.samples))
-        draw, label = ImageDraw.Draw(panel), f"environment: {kind}"
+    panels = [(Image.fromarray(render(kind, args.seed, args.plant, args.samples)), f"environment: {kind}")
+              for kind in ("plain", "film")]
+    if args.real:
+        photo = Image.open(sorted(p for p in args.real.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg"))[0])
+        side = min(photo.width, photo.height * 4 // 3)
+        crop = photo.convert("RGB").crop(((photo.width - side) // 2, 0, (photo.width + side) // 2, side * 3 // 4))
+        panels.append((crop.resize((WIDTH, HEIGHT), Image.Resampling.LANCZOS), "real photo"))
+    canvas = Image.new("RGB", (len(panels) * (WIDTH + gap) - gap, HEIGHT), "white")
+    for column, (panel, label) in enumerate(panels):
+        draw = ImageDraw.Draw(panel)
         draw.rectangle(draw.textbbox((8, 6), label), fill="white")
         draw.text((8, 6), label, fill="black")
         canvas.paste(panel, (column * (WIDTH + gap), 0))
