@@ -15,22 +15,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
 from pathlib import Path
 
-from common import scan_poses, summary
+from common import render_costs, scan_poses, timed
 
 from renderloop.config import Config, load_config
-from renderloop.render.camera import Intrinsics
-from renderloop.render.cycles import CyclesRenderer
-from renderloop.render.raster import RasterRenderer
 from renderloop.scene.generate import generate_scene
-
-
-def timed(function, *args):
-    wall, cpu = time.perf_counter(), time.process_time()
-    result = function(*args)
-    return result, time.perf_counter() - wall, time.process_time() - cpu
 
 
 def measure(preset: str, kind: str, repeats: int) -> dict:
@@ -41,17 +31,7 @@ def measure(preset: str, kind: str, repeats: int) -> dict:
     scene, scene_s, _ = timed(generate_scene, config)
     poses = scan_poses(scene, 4) * repeats
     out: dict = {"scene_s": scene_s}
-    renderer, out["cycles_build_s"], out["cycles_build_cpu_s"] = timed(CyclesRenderer, scene, config,
-                                                                       Intrinsics.from_config(config.camera))
-    with renderer:
-        _, out["cycles_first_frame_s"], out["cycles_first_frame_cpu_s"] = timed(renderer.render, poses[0])
-        frames = [timed(renderer.render, pose) for pose in poses]
-    out["cycles_frame_s"] = summary([wall for _, wall, _ in frames])
-    out["cycles_frame_cpu_s"] = summary([cpu for *_, cpu in frames])
-    raster, out["raster_build_s"], _ = timed(RasterRenderer, scene, config, Intrinsics.from_config(config.camera))
-    with raster:
-        raster.render(poses[0])
-        out["raster_frame_ms"] = summary([1000 * timed(raster.render, pose)[1] for pose in poses])
+    out.update(render_costs(scene, config, poses))
     return out
 
 

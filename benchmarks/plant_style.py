@@ -14,23 +14,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
 from pathlib import Path
 
-from common import scan_poses, summary
+from common import render_costs, scan_poses, summary, timed
 
 from renderloop.config import Config, load_config
 from renderloop.io.atomic import dumps_json
-from renderloop.render.camera import Intrinsics
-from renderloop.render.cycles import CyclesRenderer
-from renderloop.render.raster import RasterRenderer
 from renderloop.scene.generate import generate_scene
-
-
-def timed(function, *args):
-    wall, cpu = time.perf_counter(), time.process_time()
-    result = function(*args)
-    return result, time.perf_counter() - wall, time.process_time() - cpu
 
 
 def measure(style: str, repeats: int) -> dict:
@@ -39,7 +29,6 @@ def measure(style: str, repeats: int) -> dict:
     config = Config.model_validate(data)
     builds = [timed(generate_scene, config) for _ in range(repeats)]
     scene = builds[0][0]
-    intrinsics = Intrinsics.from_config(config.camera)
     poses = scan_poses(scene, 4) * repeats
     out = {
         "leaves_per_plant": summary([len(plant.leaves) for plant in scene.plants]),
@@ -47,17 +36,7 @@ def measure(style: str, repeats: int) -> dict:
         "scene_cpu_s": summary([cpu for *_, cpu in builds]),
         "scene_json_bytes": len(dumps_json(scene.model_dump(mode="json")).encode()),
     }
-    renderer, wall, cpu = timed(CyclesRenderer, scene, config, intrinsics)
-    with renderer:
-        out["cycles_build_s"], out["cycles_build_cpu_s"] = wall, cpu
-        _, out["cycles_first_frame_s"], out["cycles_first_frame_cpu_s"] = timed(renderer.render, poses[0])
-        frames = [timed(renderer.render, pose) for pose in poses]
-    out["cycles_frame_s"] = summary([wall for _, wall, _ in frames])
-    out["cycles_frame_cpu_s"] = summary([cpu for *_, cpu in frames])
-    raster, out["raster_build_s"], _ = timed(RasterRenderer, scene, config, intrinsics)
-    with raster:
-        raster.render(poses[0])
-        out["raster_frame_ms"] = summary([1000 * timed(raster.render, pose)[1] for pose in poses])
+    out.update(render_costs(scene, config, poses))
     return out
 
 
