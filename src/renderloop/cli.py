@@ -104,6 +104,8 @@ def fly(run_dir: RunDir, force: Force = False) -> None:
     typer.echo(f"fly: {'wrote' if made else 'already complete in'} {run_dir}")
 
 
+THRESHOLD_HELP = f"Score threshold; default: the config's ({DetectorConfig.model_fields['score_threshold'].default})."
+
 def _names(text: str) -> tuple[str, ...]:
     """A comma-separated option's names, in order, each once."""
     return tuple(dict.fromkeys(name.strip() for name in text.split(",")))
@@ -226,7 +228,7 @@ def detect(
     images: Annotated[Path | None, typer.Option(help="Detect on this folder of photos instead (PNG/JPEG, no depth).")] = None,
     out: Annotated[Path | None, typer.Option(help="With --images: the JSON file to write.")] = None,
     model: Annotated[Path | None, typer.Option(help="ONNX model; default: the config's, else the shipped one.")] = None,
-    threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help="Score threshold; default: the config's (0.71).")] = None,
+    threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help=THRESHOLD_HELP)] = None,
     windows: Windows = None,
     mirror: Mirror = None,
     force: Force = False,
@@ -348,7 +350,7 @@ def score_photo_folder(
                                        show_default=False)],
     out: Annotated[Path, typer.Option(help="Folder to write score.json, pr_curve.png and sheet.png into.", show_default=False)],
     model: Annotated[Path | None, typer.Option(help="ONNX model; default: the shipped one.")] = None,
-    threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help="Score threshold; default: the config's (0.71).")] = None,
+    threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help=THRESHOLD_HELP)] = None,
     windows: Windows = None,
     mirror: Mirror = None,
     force: Annotated[bool, typer.Option("--force", help="Replace a score that exists in --out.")] = False,

@@ -467,8 +467,8 @@ class RendererConfig(Strict):
 class DetectorConfig(Strict):
     model: Path | None = Field(None, description="ONNX model; null means the one shipped in the package.")
     input_size: Count(64, 2048) = Field(320, description="Side of the square network input, px.")
-    score_threshold: Fraction = Field(0.71, description="Score a detection needs. Fused scores run higher than one "
-                                      "pass's: 0.71 gave at most 5 % false detections on held-out paper runs "
+    score_threshold: Fraction = Field(0.68, description="Score a detection needs. Fused scores run higher than one "
+                                      "pass's: 0.68 gave at most 5 % false detections on held-out paper runs "
                                       "(docs/stages/perception.md).")
     windows: tuple[Annotated[str, Field(pattern=f"^{LAYOUT_PATTERN}$")], ...] = Field(
         ("2x2", "3x2"), max_length=64,  # the 8 x 8 possible layouts

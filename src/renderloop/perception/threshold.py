@@ -7,7 +7,8 @@ threshold chosen again. Every frame is searched once, keeping its fused boxes do
 PASS_FLOOR; a higher threshold only drops boxes, so each candidate is scored on exactly the
 detections `renderloop detect --threshold t` would give, against the masks. The rule serves
 the detection goal; counting can want fewer false boxes than it allows (on the demo's
-frames it chooses 0.21, where counts are worse than at 0.71: docs/stages/perception.md).
+frames it chose 0.21 for an earlier model, where counts were worse than at its default:
+docs/stages/perception.md).
 """
 
 from __future__ import annotations
