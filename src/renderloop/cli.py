@@ -106,6 +106,7 @@ def fly(run_dir: RunDir, force: Force = False) -> None:
 
 THRESHOLD_HELP = f"Score threshold; default: the config's ({DetectorConfig.model_fields['score_threshold'].default})."
 
+
 def _names(text: str) -> tuple[str, ...]:
     """A comma-separated option's names, in order, each once."""
     return tuple(dict.fromkeys(name.strip() for name in text.split(",")))

@@ -15,6 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, RootModel, model_validator
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Unit = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
 Count = Annotated[int, Field(ge=0)]
+NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]  # a distance, m, or a duration, s
 Point = tuple[Finite, Finite, Finite]
 
 
@@ -153,7 +154,7 @@ class HarvestStop(FileModel):
     row: int
     expected_ripe: Count
     position: Point
-    leg_distance: Annotated[float, Field(ge=0, allow_inf_nan=False)]  # m, from the previous stop or the workstation
+    leg_distance: NonNegative  # m, from the previous stop or the workstation
 
 
 class Harvest(FileModel):
@@ -163,12 +164,12 @@ class Harvest(FileModel):
     distance: str  # how distances are measured
     min_ripe: Count
     stops: list[HarvestStop]
-    return_distance: Annotated[float, Field(ge=0, allow_inf_nan=False)]
-    total_distance: Annotated[float, Field(ge=0, allow_inf_nan=False)]
+    return_distance: NonNegative
+    total_distance: NonNegative
     total_expected_ripe: Count
 
 
-class Timings(RootModel[dict[str, Annotated[float, Field(ge=0, allow_inf_nan=False)]]]):
+class Timings(RootModel[dict[str, NonNegative]]):
     """`timings.json`: seconds of the last run of each stage (`renderloop run`)."""
 
 
@@ -233,7 +234,7 @@ class HarvestUpdate(FileModel):
     plants_counted: Count  # plants whose row has been decided at least once
     stops: list[int]  # plant ids in visiting order (harvest.json's rule)
     expected_ripe: Count
-    total_distance: Annotated[float, Field(ge=0, allow_inf_nan=False)]  # m
+    total_distance: NonNegative  # m
 
 
 class Mission(FileModel):
