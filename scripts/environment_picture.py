@@ -6,9 +6,9 @@
 `--real FOLDER` adds a third panel, a photo of that folder (the first in name order, centre-cropped to 4:3, at
 the same size), to compare renders with reality: such a picture stays outside the repository, as the photos do.
 
-The greenhouse preset ('pepper' plants) with `greenhouse.environment.kind` plain and film: the same scanned
-plants and fruit, seen from the same pose, a waypoint of the planned scan (the first of the plant's ellipse
-on its left side, -x, at the height of the canopy's middle).
+The greenhouse preset ('highwire' plants) with `greenhouse.environment.kind` plain and film: the same scanned
+plants and fruit, seen from the same pose, a waypoint of the planned scan (the first of the plant's middle band
+on its left side, -x).
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ def render(kind: str, seed: int, plant: int, samples: int) -> np.ndarray:
     data["renderer"].update(samples=samples)
     config = Config.model_validate(data)
     scene = generate_scene(config)
-    waypoint = next(w for w in plan_waypoints(scene, config) if w.kind == "scan" and w.plant == plant and w.side == "left")
+    scan = [w for w in plan_waypoints(scene, config) if w.kind == "scan" and w.plant == plant and w.side == "left"]
+    waypoint = scan[config.planner.bands // 2 * config.planner.points_per_ellipse]
     pose = dofs_to_camera_pose(waypoint.dofs, config.robot.arm)
     with CyclesRenderer(scene, config, Intrinsics.from_config(config.camera)) as renderer:
         return renderer.render(pose).rgb

@@ -145,3 +145,29 @@ def test_a_camera_pitch_the_arm_cannot_reach_is_a_planning_error(paper):
     data["robot"]["arm"]["joint_limits"] = (-0.2, 0.2)
     with pytest.raises(UserError, match=r"cannot aim the camera at plant \d+: joint q3 = .* outside the limits"):
         plan_waypoints(scene, type(config).model_validate(data))
+
+
+def test_a_tall_canopy_is_scanned_in_bands_each_round_its_own_height_up_one_plant_and_down_the_next():
+    from renderloop.config import Config
+    from renderloop.scene.generate import generate_scene
+
+    data = load_config("greenhouse").model_dump(mode="json")
+    data["plants"]["pepper_style"]["leaves"] = [20, 30]
+    data["planner"].update(bands=3)
+    config = Config.model_validate(data)
+    scene = generate_scene(config)
+    arm, per = config.robot.arm, config.planner.points_per_ellipse
+    first_line, walked = [], []
+    for waypoint in plan_waypoints(scene, config):
+        if waypoint.kind == "scan":
+            if walked and (waypoint.side, waypoint.plant) != walked[-1] and waypoint.side != walked[0][0]:
+                break
+            walked.append((waypoint.side, waypoint.plant))
+            first_line.append(dofs_to_camera_pose(waypoint.dofs, arm)[:3, 3])
+    plants = list(dict.fromkeys(plant for _, plant in walked))
+    assert len(plants) == len(scene.plants)  # one side of the row, every plant
+    heights = np.array(first_line)[:, 2].reshape(len(plants), 3, per).mean(axis=2)  # each ellipse's centre
+    for index, plant in enumerate(plants):
+        bands = [scan_target(scene.plant(plant), band, 3)[2] for band in range(3)]
+        assert np.allclose(heights[index], bands if index % 2 == 0 else bands[::-1], atol=1e-6)
+    assert heights.min() < scan_target(scene.plants[0])[2] - 0.5 < scan_target(scene.plants[0])[2] + 0.5 < heights.max()

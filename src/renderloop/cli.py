@@ -160,7 +160,7 @@ def dataset(
     distance: Annotated[tuple[float, float], typer.Option(help="Near and far camera distance from the plant axis, m.")] = DatasetSpec.distance,
     sensor: Annotated[float, typer.Option(min=0.0, max=1.0, help="Share of the views through the colour-sensor model "
                                           "(exposure, white balance, noise, vignetting, defocus, sharpening, JPEG), drawn at random.")] = DatasetSpec.sensor,
-    styles: Annotated[str, typer.Option(help="Plant styles the scenes draw from, comma-separated: simple, pepper.")] = "simple",
+    styles: Annotated[str, typer.Option(help="Plant styles the scenes draw from, comma-separated: simple, pepper, highwire.")] = "simple",
     environments: Annotated[str, typer.Option(help="Surroundings the scenes draw from, comma-separated: plain, film.")] = "plain",
     clutter: Annotated[bool, typer.Option("--clutter/--no-clutter", help="Things that are not peppers in every scene: "
                                           "fruit-like shapes, cans, cartons, patterned mats and boards.")] = DatasetSpec.clutter,

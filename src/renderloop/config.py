@@ -225,16 +225,44 @@ class PepperStyleConfig(Strict):
         return self
 
 
+class HighWireConfig(Strict):
+    """The stems of the 'highwire' plant style: a commercial crop trained up strings to a crop wire."""
+
+    stems: tuple[Count(1, 8), Count(1, 8)] = Field(
+        (2, 4), description="Fewest and most stems of a plant, each trained up its own string (growers keep 2-4).")
+    internode: tuple[Real(0.02, 0.5), Real(0.02, 0.5)] = Field(
+        (0.06, 0.11), description="Length range of a stem's internodes, m: a node, its leaf and side shoot each step.")
+    side_shoots: Fraction = Field(
+        0.7, description="Share of a stem's nodes that keep a side shoot, 0-1 (pruned after its first leaf or fruit).")
+    leafless: Fraction = Field(
+        0.15, description="Share of the canopy's height, from the bottom, whose old leaves the grower has stripped, 0-1.")
+    wind: Real(0.0, 0.05) = Field(
+        0.008, description="How far a stem winds round its string, m (the string stays in the stem's reach).")
+
+    @model_validator(mode="after")
+    def _ranges(self) -> HighWireConfig:
+        for name in ("stems", "internode"):
+            _ordered_range(getattr(self, name), name)
+        return self
+
+
+_TEMPLATE_LEAF_STYLES = ("pepper", "highwire")
+
+
 class PlantConfig(Strict):
     """Procedural pepper plants: stem, branches, leaves, flowers, fruit, pot."""
 
-    style: Literal["simple", "pepper"] = Field(
-        "simple", description="How plants grow. 'simple': 30-55 smooth leaves on a few straight branches (the look the "
-        "shipped detector was trained on; `branches`, `leaves` and `leaf_*` describe it). 'pepper': a dichotomously "
-        "branching plant, fruit hanging from its nodes on a peduncle with a calyx, dense instanced leaves with veins, "
-        "wrinkles and a waxy sheen (`pepper_style` describes them). One seed places the same fruit (where, how big, "
-        "which colour) in both styles.")
-    pepper_style: PepperStyleConfig = Field(PepperStyleConfig(), description="The foliage of the 'pepper' style.")
+    style: Literal["simple", "pepper", "highwire"] = Field(
+        "simple", description="How plants grow. 'simple': 30-55 smooth leaves on a few straight branches (`branches`, "
+        "`leaves` and `leaf_*` describe it). 'pepper': a dichotomously branching pot-grown plant, fruit hanging from "
+        "its nodes on a peduncle with a calyx, dense instanced leaves with veins, wrinkles and a waxy sheen "
+        "(`pepper_style` describes them). 'highwire': a commercial crop's plant, 2-4 stems each winding up its string "
+        "from node to node with pruned side shoots, the same fruit, leaves and flowers (`highwire` and `pepper_style` "
+        "describe it). One seed places the same fruit (where, how big, which colour) in the 'simple' and 'pepper' "
+        "styles.")
+    pepper_style: PepperStyleConfig = Field(PepperStyleConfig(), description="The foliage of the 'pepper' and "
+                                            "'highwire' styles.")
+    highwire: HighWireConfig = Field(HighWireConfig(), description="The stems of the 'highwire' style.")
     bearing: Count(1, MAX_PLANTS) | None = Field(20, description="Plants bearing fruit; null means every plant.")
     # Greenhouse peppers are trained up to 3-4 m.
     volume: tuple[Real(0.05, 3.0), Real(0.05, 3.0), Real(0.05, 5.0)] = Field(
@@ -261,7 +289,12 @@ class PlantConfig(Strict):
     @property
     def most_leaves(self) -> int:
         """The most leaves one plant of this style can have."""
-        return self.pepper_style.leaves[1] if self.style == "pepper" else self.leaves[1]
+        return self.pepper_style.leaves[1] if self.style in _TEMPLATE_LEAF_STYLES else self.leaves[1]
+
+    @property
+    def leaves_field(self) -> str:
+        """The config field that bounds this style's leaves."""
+        return "plants.pepper_style.leaves" if self.style in _TEMPLATE_LEAF_STYLES else "plants.leaves"
 
 
 class RotorConfig(Strict):
@@ -370,6 +403,9 @@ class PlannerConfig(Strict):
     semi_axes: tuple[Real(0.01, 5.0), Real(0.01, 5.0)] = Field(
         (0.125, 0.25), description="Half width (along the row) and half height of the camera's scan ellipse, m.")
     points_per_ellipse: Count(1, 360) = Field(10, description="Scan waypoints on each ellipse.")
+    bands: Count(1, 20) = Field(
+        1, description="Ellipses stacked up the canopy on each side of a plant, each aimed at the middle of its own "
+        "band of the canopy's height: 1 where the camera sees the whole canopy, more for a tall crop.")
     max_camera_pitch: Real(0.0, 1.5) = Field(0.6, description="Largest camera pitch, rad; 0.6 lets the camera aim at the centroid from the ellipse top.")
     # Lower limits keep a trajectory (its length over its speed, times sample_rate_hz samples) within memory.
     velocity_limits: tuple[Real(0.05, 20.0), ...] = Field(
@@ -586,8 +622,7 @@ class Config(Strict):
         if self.plants.bearing is not None and self.plants.bearing > total:
             raise ValueError(f"plants.bearing: {self.plants.bearing} bearing plants but the greenhouse has {total}")
         if total * self.plants.most_leaves > MAX_LEAVES:
-            field = "plants.pepper_style.leaves" if self.plants.style == "pepper" else "plants.leaves"
-            raise ValueError(f"{field}: {total} plants of up to {self.plants.most_leaves} leaves are more than {MAX_LEAVES} leaves")
+            raise ValueError(f"{self.plants.leaves_field}: {total} plants of up to {self.plants.most_leaves} leaves are more than {MAX_LEAVES} leaves")
         if self.camera.rate_hz > self.controller.rate_hz:
             raise ValueError(f"camera.rate_hz: frames are taken at control ticks, so {self.camera.rate_hz:g} Hz cannot be "
                              f"served by a {self.controller.rate_hz:g} Hz controller")

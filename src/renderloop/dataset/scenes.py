@@ -25,8 +25,9 @@ from renderloop.scene.model import Scene
 
 SCENE_STREAM = 0xDA7A
 MAX_TRIES = 20
-STYLES = ("simple", "pepper")
+STYLES = ("simple", "pepper", "highwire")
 ENVIRONMENTS = ("plain", "film")
+HIGHWIRE_HEIGHT = (1.3, 1.9)  # m: the canopy of a 'highwire' scene's plants, under the room's 3.5 m
 CLOSE_NEAR_CLIP = 0.05  # m: the camera's near clip when views come as close as a hand's breadth
 
 
@@ -86,7 +87,7 @@ def _scene_overrides(rng: np.random.Generator, spec: DatasetSpec) -> dict:
     camera = {"width": spec.width, "height": spec.height}
     if spec.close > 0:
         camera["clip"] = (CLOSE_NEAR_CLIP, 5.0)
-    return {
+    overrides = {
         "greenhouse": {"size": (7.0, 6.0, 3.5), "tables": [(-1.0, 0.0), (1.0, 0.0)], "plants_per_table": 4,
                        "workstation_center": (0.0, -2.3), "environment": {"kind": environment}},
         "plants": {
@@ -104,6 +105,15 @@ def _scene_overrides(rng: np.random.Generator, spec: DatasetSpec) -> dict:
         "camera": camera,
         "renderer": {"backend": "cycles", "samples": int(rng.choice(spec.samples)), "denoise": True},
     }
+    if style == "highwire":  # a high-wire crop on low gutters, taller and with more fruit; drawn last, so a set
+        # without this style keeps its scenes
+        overrides = deep_merge(overrides, {
+            "greenhouse": {"table_size": (0.3, 2.0, 0.1)},
+            "plants": {"volume": (0.5, 0.5, float(rng.uniform(*HIGHWIRE_HEIGHT))),
+                       "pepper_style": {"leaves": (int(rng.integers(250, 400)), 550)},
+                       "peppers": {"per_side": (2, int(rng.integers(4, 8)))}},
+        })
+    return overrides
 
 
 def _fruitless_neighbours(scene: Scene) -> Scene:

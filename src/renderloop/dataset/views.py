@@ -23,6 +23,8 @@ from renderloop.scene.objects import Box
 DISTANCE = (0.3, 1.2)  # m from the plant's axis, horizontal; drawn closer more often, as scans are
 BEARING = math.radians(60.0)  # spread around the row's normal
 HEIGHT = (-0.15, 0.35)  # m about the canopy centre
+TALL = 1.0  # m: a canopy taller than this is seen at every height of it, up to TALL_HEIGHT of it from its centre
+TALL_HEIGHT = 0.4
 MAX_UPWARD = math.radians(20.0)  # scans look level or down; a little up is allowed
 AIM = 0.3  # fraction of the canopy box the aim point may leave its centre by
 ROLL = math.radians(8.0)
@@ -90,7 +92,8 @@ def random_view(scene: Scene, rng: np.random.Generator, distance_range: tuple[fl
         bearing = side + rng.uniform(-BEARING, BEARING)
         distance = distance_range[0] + (distance_range[1] - distance_range[0]) * rng.random() ** 2
         camera = np.array([plant.position[0] + distance * math.cos(bearing), plant.position[1] + distance * math.sin(bearing),
-                           center[2] + rng.uniform(*HEIGHT)])
+                           center[2] + (rng.uniform(-TALL_HEIGHT, TALL_HEIGHT) * size[2] if size[2] > TALL
+                                        else rng.uniform(*HEIGHT))])
         if _blocked(scene, camera):
             continue
         target = center + rng.uniform(-AIM, AIM, 3) * size

@@ -37,10 +37,12 @@ class Waypoint:
     time: float = float("nan")  # when the trajectory passes it, once parameterised
 
 
-def scan_target(plant: Plant) -> np.ndarray:
-    """The point the camera aims at: the plant's axis, halfway up its canopy."""
+def scan_target(plant: Plant, band: int = 0, bands: int = 1) -> np.ndarray:
+    """The point the camera aims at: the plant's axis, halfway up its canopy, or up band `band` of `bands`
+    (counted from the bottom) of its height."""
     canopy_bottom = plant.position[2] + plant.pot.height
-    return np.array([plant.position[0], plant.position[1], (canopy_bottom + plant.bounds.max[2]) / 2])
+    height = plant.bounds.max[2] - canopy_bottom
+    return np.array([plant.position[0], plant.position[1], canopy_bottom + height * (band + 0.5) / bands])
 
 
 def footprint_radius(config: Config) -> float:
@@ -61,10 +63,17 @@ def _camera_distance(config: Config) -> float:
     return distance
 
 
-def plant_ellipse(plant: Plant, side: int, walk: int, config: Config) -> list[Waypoint]:
-    """The ellipse of one plant seen from `side` (-1: from -x, +1: from +x), starting behind the walking direction."""
+def plant_ellipse(plant: Plant, side: int, walk: int, config: Config, upward: bool = True) -> list[Waypoint]:
+    """The ellipse of one plant seen from `side` (-1: from -x, +1: from +x), starting behind the walking direction;
+    with `planner.bands` above 1, one ellipse per band, from the bottom up (`upward`) or from the top down."""
+    planner = config.planner
+    order = range(planner.bands) if upward else reversed(range(planner.bands))
+    return [waypoint for band in order for waypoint in _ellipse(plant, scan_target(plant, band, planner.bands), side,
+                                                                 walk, config)]
+
+
+def _ellipse(plant: Plant, target: np.ndarray, side: int, walk: int, config: Config) -> list[Waypoint]:
     planner, arm = config.planner, config.robot.arm
-    target = scan_target(plant)
     offset = side * _camera_distance(config)
     half_width, half_height = planner.semi_axes
     waypoints = []
@@ -85,7 +94,8 @@ def plant_ellipse(plant: Plant, side: int, walk: int, config: Config) -> list[Wa
 def scan_line(row: Row, scene: Scene, side: int, walk: int, config: Config) -> list[Waypoint]:
     """Every plant of a row seen from one side, walking along +y (walk=1) or -y (walk=-1)."""
     plants = sorted((scene.plant(plant_id) for plant_id in row.plants), key=lambda p: walk * p.position[1])
-    return [waypoint for plant in plants for waypoint in plant_ellipse(plant, side, walk, config)]
+    return [waypoint for index, plant in enumerate(plants)  # bands up one plant and down the next
+            for waypoint in plant_ellipse(plant, side, walk, config, upward=index % 2 == 0)]
 
 
 def _rows_in_order(scene: Scene) -> list[Row]:

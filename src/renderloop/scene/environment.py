@@ -24,8 +24,8 @@ from renderloop.config import Config
 from renderloop.errors import UserError
 from renderloop.scene.model import BackgroundPlant, Environment, Plant, Prototype, Row, Table, Trap
 from renderloop.scene.objects import CHORD, GUTTER, TRUSS_DEPTH
-from renderloop.scene.pepper_plant import grow_pepper_plant
-from renderloop.scene.plant import PepperFitError, grow_plant
+from renderloop.scene.plant import PepperFitError
+from renderloop.scene.styles import GROWERS
 
 __all__ = ["ENVIRONMENT_STREAM", "PROTOTYPES", "draw_environment", "sun_direction"]
 
@@ -97,7 +97,7 @@ def _lines(config: Config, rows: list[Row], reach: float) -> list[tuple[float, f
 
 
 def _prototypes(rng: np.random.Generator, config: Config, height: float) -> list[Prototype]:
-    grow = grow_pepper_plant if config.plants.style == "pepper" else grow_plant
+    grow = GROWERS[config.plants.style]
     low, high = config.plants.peppers.per_side
     seeds = np.random.SeedSequence(int(rng.integers(2**63))).spawn(PROTOTYPES)
     prototypes = []

@@ -14,8 +14,8 @@ from renderloop.errors import UserError
 from renderloop.scene.environment import draw_environment
 from renderloop.scene.layout import table_slots
 from renderloop.scene.model import MAX_PEPPER_ID, Row, Scene, Table, Workstation
-from renderloop.scene.pepper_plant import grow_pepper_plant
-from renderloop.scene.plant import PepperFitError, grow_plant
+from renderloop.scene.plant import PepperFitError
+from renderloop.scene.styles import GROWERS
 
 
 def _bearing_plants(rng: np.random.Generator, total: int, bearing: int | None) -> set[int]:
@@ -39,7 +39,7 @@ def generate_scene(config: Config) -> Scene:
     if sum(left + right for left, right in per_side.values()) > MAX_PEPPER_ID:
         raise UserError(f"plants.peppers.per_side: more than {MAX_PEPPER_ID} peppers in one scene")
 
-    grow = grow_pepper_plant if plants_config.style == "pepper" else grow_plant
+    grow = GROWERS[plants_config.style]
     rows, plants, peppers = [], [], []
     for slot in slots:
         plant_ids = []

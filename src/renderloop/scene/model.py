@@ -105,6 +105,8 @@ class Plant(Frozen):
     branches: list[Tube]
     leaves: list[Leaf]
     flowers: list[Flower]
+    strings: list[Vec3] | None = WhenSet("Where each stem's string is tied at the plant's foot (the 'highwire' "
+                                         "style); a string runs straight up from there to the crop wire.")
 
 
 class Calyx(Frozen):

@@ -24,7 +24,7 @@ import numpy as np
 from renderloop.scene import meshes
 from renderloop.scene.materials import MATERIALS, RGBA
 from renderloop.scene.meshes import Mesh
-from renderloop.scene.model import MAX_PEPPER_ID, Environment, Scene
+from renderloop.scene.model import MAX_PEPPER_ID, Environment, Plant, Scene
 from renderloop.scene.plant_meshes import LEAF_SHAPES, PETIOLE, leaf_template, leaf_transform, plant_meshes
 
 __all__ = ["Box", "Cylinder", "Instances", "SceneObject", "greenhouse_objects", "collision_objects", "static_objects",
@@ -240,16 +240,22 @@ def _wires_and_strings(scene: Scene, inside: bool) -> list[Cylinder]:
     wire = environment.wire_height
     if inside:
         lines = sorted({row.table.center[0] for row in scene.rows})
-        tops = [(plant.position, plant.bounds.max[2]) for plant in scene.plants]
+        feet = [foot for plant in scene.plants for foot in _string_feet(plant)]
     else:
         scanned = {round(row.table.center[0], 6) for row in scene.rows}
         lines = sorted({table.center[0] for table in environment.tables} - scanned)
-        tops = [(copy.position, environment.prototypes[copy.prototype].plant.bounds.max[2]) for copy in environment.plants]
-        tops += [((trap.center[0], trap.center[1]), trap.center[2] + TRAP_SIZE[1] / 2) for trap in environment.traps]
+        feet = [tuple(_yaw(copy.position, copy.yaw) @ (*foot, 1.0))[:3] for copy in environment.plants
+                for foot in _string_feet(environment.prototypes[copy.prototype].plant)]
+        feet += [(trap.center[0], trap.center[1], trap.center[2] + TRAP_SIZE[1] / 2) for trap in environment.traps]
     shapes = [Cylinder(f"wire_{x:.3f}", (x, -half_y, wire), (x, half_y, wire), WIRE_RADIUS) for x in lines]
     prefix = "string" if inside else "string_bg"
-    shapes += [Cylinder(f"{prefix}_{k}", (p[0], p[1], top), (p[0], p[1], wire), STRING_RADIUS) for k, (p, top) in enumerate(tops)]
+    shapes += [Cylinder(f"{prefix}_{k}", tuple(foot), (foot[0], foot[1], wire), STRING_RADIUS) for k, foot in enumerate(feet)]
     return shapes
+
+
+def _string_feet(plant: Plant) -> list[tuple[float, float, float]]:
+    """Where a plant's strings start: where each stem's is tied (the 'highwire' style), else one at its top."""
+    return list(plant.strings) if plant.strings else [(plant.position[0], plant.position[1], plant.bounds.max[2])]
 
 
 @functools.cache

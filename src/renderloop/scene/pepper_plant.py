@@ -103,6 +103,14 @@ class PepperPlantGrower:
         samples = _along(points, 0.01)
         return self._inside(samples, BRANCH_MARGIN) and self._clear_of_fruit(samples, BRANCH_MARGIN)
 
+    def _axis_xy(self, point: np.ndarray) -> np.ndarray:
+        """The (x, y) of the stem axis that `point` grows round: out from it is outward."""
+        return self.grower.base[:2]
+
+    def _leafy(self) -> list[tuple[np.ndarray, np.ndarray, int]]:
+        """The internodes that carry leaves."""
+        return self.internodes
+
     def _radius(self, order: int) -> float:
         return round(max(0.0015, self.config.stem_radius * 0.7**order), 6)
 
@@ -174,7 +182,7 @@ class PepperPlantGrower:
         for pepper in self.peppers:
             center, axis = np.array(pepper.center), np.array(pepper.axis)
             top = center - axis * pepper.length / 2
-            inward = np.r_[self.grower.base[:2] - center[:2], 0.0]
+            inward = np.r_[self._axis_xy(center) - center[:2], 0.0]
             inward = _unit(inward) if np.linalg.norm(inward) > 1e-6 else np.array([1.0, 0.0, 0.0])
             node = top + inward * rng.uniform(0.005, 0.02) + np.array([0.0, 0.0, rng.uniform(0.012, 0.025)])
             for _ in range(40):  # up and in until clear of every fruit, its own included
@@ -209,7 +217,7 @@ class PepperPlantGrower:
         start = candidates[chosen]
         path = [start, (start + node) / 2 + np.array([0.0, 0.0, 0.01 + 0.15 * np.linalg.norm(node - start)]), node]
         order = int(orders[chosen]) + 1
-        outward = np.r_[node[:2] - self.grower.base[:2], 0.0]
+        outward = np.r_[node[:2] - self._axis_xy(node), 0.0]
         outward = _unit(outward) if np.linalg.norm(outward) > 1e-6 else np.array([1.0, 0.0, 0.0])
         drawn = [node + _unit(outward * rng.uniform(0.2, 0.8) + np.array([0.0, 0.0, 1.0]) + rng.normal(0.0, 0.3, 3))
                  * rng.uniform(0.03, 0.07) for _ in range(ATTEMPTS)]
@@ -230,9 +238,10 @@ class PepperPlantGrower:
 
     def grow_leaves(self, rng: np.random.Generator) -> list[Leaf]:
         style = self.config.pepper_style
-        starts = np.array([start for start, _, _ in self.internodes])
-        ends = np.array([end for _, end, _ in self.internodes])
-        orders = np.array([order for _, _, order in self.internodes], dtype=float)
+        leafy = self._leafy()
+        starts = np.array([start for start, _, _ in leafy])
+        ends = np.array([end for _, end, _ in leafy])
+        orders = np.array([order for _, _, order in leafy], dtype=float)
         weights = np.linalg.norm(ends - starts, axis=1) * (1.0 + 0.25 * orders) + 1e-9
         weights /= weights.sum()
         oldest = orders.max() or 1.0
@@ -241,7 +250,7 @@ class PepperPlantGrower:
             for _attempt in range(ATTEMPTS):
                 k = int(rng.choice(len(weights), p=weights))
                 base = starts[k] + (ends[k] - starts[k]) * rng.uniform(0.1, 1.0)
-                outward = base[:2] - self.grower.base[:2]
+                outward = base[:2] - self._axis_xy(base)
                 heading = math.atan2(outward[1], outward[0]) + rng.normal(0.0, 1.0) if np.linalg.norm(outward) > 0.01 \
                     else rng.uniform(0.0, 2 * math.pi)
                 elevation = rng.uniform(-0.35, 0.25)  # the petiole rises, the blade droops from it
@@ -285,6 +294,10 @@ class PepperPlantGrower:
                     break
         return flowers
 
+    def strings(self) -> list[tuple[float, ...]] | None:
+        """Where the plant's strings are tied: a pot-grown plant has none."""
+        return None
+
     def branches(self) -> tuple[Tube, list[Tube]]:
         stem, *others = self.tubes
         as_tube = [Tube(points=[_round(p) for p in tube["points"]], radius=self._radius(tube["order"]))
@@ -300,11 +313,13 @@ def grow_pepper_plant(
     position: tuple[float, float, float],
     peppers_per_side: tuple[int, int],
     first_pepper_id: int,
+    grower_class: type[PepperPlantGrower] = PepperPlantGrower,
 ) -> tuple[Plant, list[Pepper]]:
-    """One 'pepper' style plant with `peppers_per_side` = (left, right) fruit, ids counting from `first_pepper_id`."""
+    """One 'pepper' style plant with `peppers_per_side` = (left, right) fruit, ids counting from `first_pepper_id`;
+    `grower_class` grows another skeleton round the same fruit, leaves and flowers (scene/highwire.py)."""
     grower = PlantGrower(rng, config, position)
     placed = place_fruit(grower, plant_id, peppers_per_side, first_pepper_id)
-    plant = PepperPlantGrower(grower, placed)
+    plant = grower_class(grower, placed)
     plant.grow_skeleton(_stream(rng, SKELETON_STREAM))
     peppers = plant.hang_fruit(_stream(rng, FRUIT_STREAM))
     leaves = plant.grow_leaves(_stream(rng, LEAF_STREAM))
@@ -315,5 +330,5 @@ def grow_pepper_plant(
         bounds=Box(min=_round(grower.box_min), max=_round(grower.box_max)),
         bearing=sum(peppers_per_side) > 0,
         pot=Pot(radius_top=config.pot.radius_top, radius_bottom=config.pot.radius_bottom, height=config.pot.height),
-        stem=stem, branches=branches, leaves=leaves, flowers=flowers,
+        stem=stem, branches=branches, leaves=leaves, flowers=flowers, strings=plant.strings(),
     ), peppers
