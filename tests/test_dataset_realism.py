@@ -11,7 +11,7 @@ import pytest
 
 from renderloop.dataset.build import build_dataset
 from renderloop.dataset.clutter import PEPPER_CLEARANCE, clutter_objects, standing_boards
-from renderloop.dataset.scenes import DatasetSpec, dataset_scene
+from renderloop.dataset.scenes import HIGHWIRE_HEIGHT, DatasetSpec, dataset_scene
 from renderloop.dataset.views import CLOSE_DISTANCE, _through, close_view, random_view
 from renderloop.errors import UserError
 from renderloop.scene.objects import Box
@@ -31,6 +31,20 @@ def test_scenes_draw_both_plant_styles_and_both_surroundings_and_the_neighbours_
     # a spec that draws nothing new builds the scenes it always did
     plain = dataset_scene(DatasetSpec(seed=21), 0)
     assert plain[0].plants.style == "simple" and plain[1].environment is None and plain[0].camera.clip[0] == 0.2
+
+
+def test_a_highwire_scene_stands_tall_plants_on_strings_on_a_low_gutter_and_views_reach_up_its_canopy():
+    spec = DatasetSpec(seed=5, styles=("highwire",), environments=("film",))
+    config, scene = dataset_scene(spec, 0)
+    low, high = HIGHWIRE_HEIGHT
+    assert config.plants.style == "highwire" and low <= config.plants.volume[2] <= high
+    assert all(row.table.size[2] == pytest.approx(0.1) for row in scene.rows)
+    assert all(plant.strings for plant in scene.plants)
+    assert all(p.plant.strings for p in scene.environment.prototypes)  # the neighbours are the same crop
+    rng = np.random.default_rng(0)
+    heights = np.array([random_view(scene, rng)[2, 3] for _ in range(60)])
+    canopy = [(p.position[2] + p.pot.height, p.bounds.max[2]) for p in scene.plants][0]
+    assert heights.min() < canopy[0] + 0.3 * (canopy[1] - canopy[0]) and heights.max() > canopy[1] - 0.3 * (canopy[1] - canopy[0])
 
 
 def test_clutter_keeps_clear_of_every_pepper_and_carries_no_instance_id():
