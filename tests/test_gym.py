@@ -90,7 +90,7 @@ def test_an_action_out_of_reach_is_flown_to_the_nearest_reachable_view(small: Co
         # the far side of the plant, through its row, and far outside the action's ranges
         action = np.array([opposite(info["view"]), 7.0, -3.0], np.float32)
         observation, _, _, _, info = env.step(action)
-        wanted = action_to_view(action)
+        wanted = action_to_view(action, env.plant)
         assert wanted.height == pytest.approx(0.3) and wanted.distance == pytest.approx(0.35)  # clipped
         assert info["projected"] and not np.allclose(info["view"], info["requested_view"])
         assert np.allclose(info["view"][1:], info["requested_view"][1:])  # the same ring, another azimuth

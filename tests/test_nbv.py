@@ -346,3 +346,33 @@ def test_the_candidates_of_a_plant_in_a_row_leave_out_the_views_into_its_neighbo
     candidates = candidate_views(Projector(config, scene, inner, world))
     azimuths = {round(math.degrees(c.view.azimuth)) for c in candidates}
     assert {0, 180} <= azimuths and not {80, 100, -80, -100} & azimuths
+
+
+def test_views_of_a_tall_canopy_reach_up_it_and_look_near_their_own_height_while_a_short_one_keeps_three(tmp_path, greenhouse):
+    from renderloop.config import Config, load_config
+    from renderloop.loop.nbv import heights
+    from renderloop.loop.viewpoints import aim_point
+    from renderloop.scene.generate import generate_scene
+
+    _, _, _, short = greenhouse
+    assert heights(short) == (-0.2, 0.0, 0.2)
+    assert np.allclose(aim_point(short, camera_position(short, View(0.0, 0.2, 0.5))), scan_target(short))
+    data = load_config("greenhouse").model_dump(mode="json")
+    data["plants"]["pepper_style"]["leaves"] = [20, 30]
+    config = Config.model_validate(data)
+    scene = generate_scene(config)
+    world = tmp_path / "world.xml"
+    world.write_text(world_xml(scene, config), encoding="utf-8")
+    plant = scene.plants[2]
+    low, high = canopy_box(plant)[0][2], canopy_box(plant)[1][2]
+    tall = heights(plant)
+    assert len(tall) > 3 and np.all(np.diff(tall) <= 0.2 + 1e-9)
+    middle = scan_target(plant)[2]
+    assert middle + tall[0] < low + 0.5 and middle + tall[-1] > high - 0.5  # from near the bottom to near the top
+    projector = Projector(config, scene, plant, world)
+    for height in tall:
+        view = View(math.pi, height, 0.55)  # from the aisle at -x
+        position = camera_position(plant, view)
+        aim = aim_point(plant, position)
+        assert low < aim[2] < high and abs(aim[2] - position[2]) <= 0.3 + 1e-9
+        assert projector.dofs(view) is not None  # the arm aims the camera there

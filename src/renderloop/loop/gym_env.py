@@ -20,11 +20,14 @@ Views. A view is (azimuth, height, distance) about the plant: the camera sits `d
 (horizontally) from the plant's axis, in the direction `azimuth` (rad, counter-clockwise
 from world +x: 0 faces the plant from +x, π from -x), `height` above the middle of the
 canopy (`renderloop.planning.waypoints.scan_target`), and looks at that middle with no
-roll (`look_at`); inverse kinematics (`camera_pose_to_dofs`) gives the robot's q*.
+roll (`look_at`); inverse kinematics (`camera_pose_to_dofs`) gives the robot's q*. On a
+canopy taller than 1 m (the greenhouse preset's) the height reaches to 0.2 m inside its
+ends, and the camera looks at the plant's axis nearest its own height, at most 0.3 m from
+it (`renderloop.loop.viewpoints.aim_point`).
 
 Action: a float32 Box of 3 in [-1, 1], scaled linearly to the view:
     azimuth  = π a[0]                                  rad, in [-π, π]
-    height   = 0.3 a[1]                                m, in [-0.3, 0.3]
+    height   = 0.3 a[1]                                m, in [-0.3, 0.3] (tall canopies: see above)
     distance = 0.55 + 0.2 a[2]                         m, in [0.35, 0.75]
 Values outside [-1, 1] are clipped (and NaN reads as 0).
 
@@ -213,7 +216,7 @@ class PepperScanEnv(gymnasium.Env):
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         if self.sim is None or self._frame is None:
             raise UserError("PepperScanEnv: call reset() before step()")
-        wanted = action_to_view(action)
+        wanted = action_to_view(action, self.plant)
         before = self.sim.t
         view, waypoints = self.projector.project(self.view, wanted)
         try:

@@ -1,8 +1,9 @@
 """Next-best views of one plant: where to look again, from what the robot's depth frames and its count know.
 
 Candidates are a fixed grid of views about the plant (`renderloop.loop.viewpoints`): every
-AZIMUTH_STEP of azimuth from world +x, at the HEIGHTS about the canopy's middle and the
-DISTANCES from its axis (fractions of viewpoints' HEIGHT_RANGE and DISTANCE_RANGE). A
+AZIMUTH_STEP of azimuth from world +x, at the `heights` about the canopy's middle (three for a
+short canopy, more up a tall one) and the DISTANCES from its axis (fractions of the views'
+height and distance ranges in viewpoints). A
 candidate is kept when the arm's inverse kinematics reaches it and the robot posed there
 is clear of the greenhouse in MuJoCo (`Projector.dofs`, `Projector.clear`); in a row, the
 views along the row run into the neighbours and drop out.
@@ -41,14 +42,14 @@ import numpy as np
 
 from renderloop.config import PlannerConfig
 from renderloop.errors import UserError
-from renderloop.loop.viewpoints import DISTANCE_RANGE, HEIGHT_RANGE, Projector, View, view_at, wrap
+from renderloop.loop.viewpoints import DISTANCE_RANGE, HEIGHT_RANGE, Projector, View, height_range, view_at, wrap
 from renderloop.loop.voxels import MAX_RANGE, VoxelMap
 from renderloop.render.camera import Intrinsics
 from renderloop.robot.kinematics import dofs_to_camera_pose
 from renderloop.scene.model import Plant
 
 AZIMUTH_STEP = math.radians(20.0)  # 18 azimuths round the plant
-HEIGHTS = tuple(round(f * HEIGHT_RANGE, 9) for f in (-2 / 3, 0.0, 2 / 3))  # m about the canopy's middle
+HEIGHT_STEP = 2 / 3 * HEIGHT_RANGE  # m: the most between two candidate heights; a short canopy has three
 DISTANCES = tuple(round(DISTANCE_RANGE[0] + f * (DISTANCE_RANGE[1] - DISTANCE_RANGE[0]), 9) for f in (0.25, 0.75))  # m
 
 
@@ -86,11 +87,19 @@ def _frozen(array: np.ndarray) -> np.ndarray:
     return array
 
 
+def heights(plant: Plant) -> tuple[float, ...]:
+    """The candidate views' heights about the canopy's middle, m: from -2/3 to 2/3 of the views' reach
+    (viewpoints.height_range), at most HEIGHT_STEP apart."""
+    reach = 2 / 3 * height_range(plant)
+    count = max(3, math.ceil(2 * reach / HEIGHT_STEP - 1e-9) + 1)
+    return tuple(round(float(h), 9) for h in np.linspace(-reach, reach, count))
+
+
 def candidate_views(projector: Projector) -> list[Candidate]:
     """The grid of views about the projector's plant (module docstring) that the robot can reach and be at, clear."""
     candidates = []
     for k in range(round(2 * math.pi / AZIMUTH_STEP)):
-        for height in HEIGHTS:
+        for height in heights(projector.plant):
             for distance in DISTANCES:
                 view = View(wrap(k * AZIMUTH_STEP), height, distance)
                 dofs = projector.dofs(view)

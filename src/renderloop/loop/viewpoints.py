@@ -1,7 +1,8 @@
 """Viewpoints around one plant and which of them the robot can fly to from where it is.
 
 A view is (azimuth, height, distance) about the plant's axis, the camera looking at the middle
-of its canopy with no roll; `Projector.project` turns any wanted view into the reachable view
+of its canopy with no roll (on a canopy taller than the camera sees whole, at the plant's axis
+near its own height: `aim_point`); `Projector.project` turns any wanted view into the reachable view
 nearest to it and the waypoints that fly there round the plant (the rule is described in
 `renderloop.loop.gym_env`, the environment that exposes it as an action space).
 """
@@ -23,7 +24,8 @@ from renderloop.planning.waypoints import scan_target
 from renderloop.robot.kinematics import UnreachablePose, camera_pose_to_dofs, look_at
 from renderloop.scene.model import Plant, Scene
 
-HEIGHT_RANGE = 0.3  # m above or below the canopy's middle
+HEIGHT_RANGE = 0.3  # m above or below the canopy's middle; a tall canopy's views reach up and down it (height_range)
+CANOPY_MARGIN = 0.2  # m: a tall canopy's highest and lowest views stand this far inside its ends
 DISTANCE_RANGE = (0.35, 0.75)  # m, camera to the plant's axis, horizontally
 WAYPOINT_STEP = math.radians(10.0)  # largest azimuth between the waypoints of a flight around the plant
 SEARCH_STEP = math.radians(5.0)  # azimuth step of the search for the nearest reachable view
@@ -48,11 +50,26 @@ def wrap(angle: float) -> float:
     return math.pi if wrapped == -math.pi else wrapped
 
 
-def action_to_view(action: np.ndarray) -> View:
-    """The view an action asks for, clipped to the ranges (NaN reads as 0)."""
+def height_range(plant: Plant) -> float:
+    """How far above or below the canopy's middle a view may be, m: HEIGHT_RANGE, or for a canopy taller than the
+    camera sees whole, up to CANOPY_MARGIN inside its ends."""
+    height = plant.bounds.max[2] - plant.position[2] - plant.pot.height
+    return max(HEIGHT_RANGE, height / 2 - CANOPY_MARGIN)
+
+
+def aim_point(plant: Plant, position: np.ndarray) -> np.ndarray:
+    """What a camera at `position` looks at: the canopy's middle, or on a tall canopy the point of the plant's axis
+    nearest its own height within HEIGHT_RANGE of a view's reach (so it looks as steeply as at a short canopy)."""
+    middle = scan_target(plant)
+    slack = height_range(plant) - HEIGHT_RANGE
+    return middle + np.array([0.0, 0.0, float(np.clip(position[2] - middle[2], -slack, slack))])
+
+
+def action_to_view(action: np.ndarray, plant: Plant) -> View:
+    """The view of `plant` an action asks for, clipped to the ranges (NaN reads as 0)."""
     a = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64).reshape(3), nan=0.0), -1.0, 1.0)
     low, high = DISTANCE_RANGE
-    return View(wrap(math.pi * a[0]), HEIGHT_RANGE * a[1], (low + high) / 2 + (high - low) / 2 * a[2])
+    return View(wrap(math.pi * a[0]), height_range(plant) * a[1], (low + high) / 2 + (high - low) / 2 * a[2])
 
 
 def camera_position(plant: Plant, view: View) -> np.ndarray:
@@ -74,10 +91,10 @@ class Projector:
         self.model = mujoco.MjModel.from_xml_path(str(world))  # its own copy: the check sets clearance margins on it
 
     def dofs(self, view: View) -> np.ndarray | None:
-        """q* that put the camera at the view looking at the canopy's middle; None when the arm cannot."""
+        """q* that put the camera at the view looking at its aim point; None when the arm cannot."""
         position = camera_position(self.plant, view)
         try:
-            return camera_pose_to_dofs(look_at(position, scan_target(self.plant)), self.arm)
+            return camera_pose_to_dofs(look_at(position, aim_point(self.plant, position)), self.arm)
         except UnreachablePose:
             return None
 

@@ -15,9 +15,8 @@ import math
 
 import numpy as np
 
-from renderloop.config import PlantConfig
-from renderloop.scene.model import Pepper, Plant
-from renderloop.scene.pepper_plant import BRANCH_MARGIN, PepperPlantGrower, grow_pepper_plant
+from renderloop.scene.model import Pepper
+from renderloop.scene.pepper_plant import BRANCH_MARGIN, PepperPlantGrower
 
 STEM_ORDER, SHOOT_ORDER = 1, 2  # a trained stem is one fork from the main stem; a side shoot one more
 STRING_LAYOUTS = 40  # draws of the strings' places along the row before the one with fewest fruit in the way
@@ -118,16 +117,3 @@ class HighWireGrower(PepperPlantGrower):
     def strings(self) -> list[tuple[float, ...]]:
         return [tuple(round(float(v), 6) for v in foot) for foot in self.feet]
 
-
-def grow_highwire_plant(
-    rng: np.random.Generator,
-    config: PlantConfig,
-    plant_id: int,
-    row: int,
-    position: tuple[float, float, float],
-    peppers_per_side: tuple[int, int],
-    first_pepper_id: int,
-) -> tuple[Plant, list[Pepper]]:
-    """One 'highwire' style plant with `peppers_per_side` = (left, right) fruit, ids counting from `first_pepper_id`."""
-    return grow_pepper_plant(rng, config, plant_id, row, position, peppers_per_side, first_pepper_id,
-                             grower_class=HighWireGrower)
