@@ -90,6 +90,29 @@ def test_a_mission_with_no_budget_flies_the_first_pass_alone_and_says_why(tmp_pa
     assert uncertain and all("budget" in (plant.fallback or "") for plant in uncertain)
 
 
+def test_a_refused_re_scan_path_drops_its_last_view_and_flies_the_rest(tmp_path: Path, monkeypatch):
+    """A path through views each clear may still bend too near a plant: the mission tries again without its last
+    view rather than giving up every view of the row."""
+    from renderloop.errors import UserError
+
+    replan, refusals = Simulation.replan, []
+
+    def refuse_once(self, waypoints, check=False):
+        if check and not refusals:
+            refusals.append(len(waypoints))
+            raise UserError("the trajectory comes within 3 cm of plant_1")
+        return replan(self, waypoints, check)
+
+    monkeypatch.setattr(Simulation, "replan", refuse_once)
+    run_dir = tmp_path / "refused"
+    run_pipeline(run_dir, _config())
+    mission = files.read_mission(run_dir)
+    assert refusals  # the first re-scan was refused
+    flown = [view for plant in mission.plants for round_ in plant.rounds for view in round_.views]
+    assert flown and mission.frames == mission.first_pass_frames + len(flown)
+    assert all(plant.fallback is None for plant in mission.plants if plant.rounds)
+
+
 def test_the_report_shows_what_the_mission_decided(adaptive_run: Path, tmp_path: Path, monkeypatch, capsys):
     code, _, err = cli(monkeypatch, capsys, "report", str(adaptive_run), "--out", str(tmp_path / "report.html"))
     assert code == 0, err

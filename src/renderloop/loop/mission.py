@@ -183,29 +183,29 @@ class AdaptiveMission:
         return ", ".join(reasons)
 
     def _fly(self, decision: _Decision, plan: list[tuple[Plant, list, str]], state: dict[int, Estimate]) -> None:
-        """Replan through the chosen views, rejoining the scan where it goes on after this row."""
+        """Replan through the chosen views, rejoining the scan where it goes on after this row. Each view was checked
+        clear, but the trajectory through them may bend too near a plant: then the last view is dropped and the rest
+        tried again, and a plant left with none falls back to its first pass."""
         rejoin = next((i for i in range(self.row_end[decision.row] + 1, len(self.static))
                        if self.static[i].kind in ("scan", "end")), len(self.static) - 1)
-        here = Waypoint("transit", self.sim.reference[0].copy())
-        path: list[Waypoint] = []
-        marks: list[tuple[int, Plant, object]] = []  # (index in path, plant, chosen view)
-        previous = here
         rest = self.static[rejoin:]
-        try:
-            for plant, chosen, _ in plan:
-                for view in chosen:
-                    stop = Waypoint("view", np.asarray(view.dofs, dtype=float), plant.id)
-                    path.extend(transit(self.router, previous, stop))
-                    marks.append((len(path), plant, view))
-                    path.append(stop)
-                    previous = stop
-            path.extend(transit(self.router, previous, self.static[rejoin]))
-            times = self.sim.replan(np.array([w.dofs for w in path + rest]), check=True)
-        except UserError as problem:
-            for plant, _, _ in plan:
-                if decision.round == 0:
-                    self.logs[plant.id].fallback = f"the re-scan path was refused: {problem}"
-            return
+        plan = [(plant, list(chosen), why) for plant, chosen, why in plan]
+        while True:
+            try:
+                path, marks = self._path(plan, self.static[rejoin])
+                times = self.sim.replan(np.array([w.dofs for w in path + rest]), check=True)
+                break
+            except UserError as problem:
+                refused = f"the re-scan path was refused: {problem}"
+                left = [chosen for _, chosen, _ in plan if chosen]
+                if left:
+                    left[-1].pop()
+                for plant, chosen, _ in plan:
+                    if not chosen and decision.round == 0:
+                        self.logs[plant.id].fallback = refused
+                plan = [entry for entry in plan if entry[1]]
+                if not plan:
+                    return
         for offset, index in enumerate(range(rejoin, len(self.static))):
             self.passes[index] = float(times[len(path) + offset])
         self._retime(decision.row)
@@ -227,6 +227,22 @@ class AdaptiveMission:
         self.camera.pause(until=last)
         self.pending.append(_Decision(last + SETTLE, decision.row, decision.round + 1))
         self.pending.sort(key=lambda d: d.time)
+
+    def _path(self, plan: list[tuple[Plant, list, str]], rejoin: Waypoint) -> tuple[list[Waypoint], list[tuple]]:
+        """The waypoints from the reference through every chosen view to `rejoin`, and (index in them, plant, view)
+        of each view."""
+        path: list[Waypoint] = []
+        marks: list[tuple[int, Plant, object]] = []
+        previous = Waypoint("transit", self.sim.reference[0].copy())
+        for plant, chosen, _ in plan:
+            for view in chosen:
+                stop = Waypoint("view", np.asarray(view.dofs, dtype=float), plant.id)
+                path.extend(transit(self.router, previous, stop))
+                marks.append((len(path), plant, view))
+                path.append(stop)
+                previous = stop
+        path.extend(transit(self.router, previous, rejoin))
+        return path, marks
 
     def _retime(self, row: int) -> None:
         """Later rows' decisions at the instants the new plan passes their last scan waypoints."""
