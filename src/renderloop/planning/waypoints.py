@@ -40,9 +40,9 @@ class Waypoint:
 def scan_target(plant: Plant, band: int = 0, bands: int = 1) -> np.ndarray:
     """The point the camera aims at: the plant's axis, halfway up its canopy, or up band `band` of `bands`
     (counted from the bottom) of its height."""
-    canopy_bottom = plant.position[2] + plant.pot.height
-    height = plant.bounds.max[2] - canopy_bottom
-    return np.array([plant.position[0], plant.position[1], canopy_bottom + height * (band + 0.5) / bands])
+    canopy_bottom, top = plant.position[2] + plant.pot.height, plant.bounds.max[2]
+    up = 2 * band + 1  # written so that one band is exactly (bottom + top) / 2, as before bands existed
+    return np.array([plant.position[0], plant.position[1], (canopy_bottom * (2 * bands - up) + top * up) / (2 * bands)])
 
 
 def footprint_radius(config: Config) -> float:
