@@ -17,6 +17,7 @@ import numpy as np
 
 from renderloop.scene.model import Pepper
 from renderloop.scene.pepper_plant import BRANCH_MARGIN, PepperPlantGrower
+from renderloop.scene.plant import _round
 
 STEM_ORDER, SHOOT_ORDER = 1, 2  # a trained stem is one fork from the main stem; a side shoot one more
 STRING_LAYOUTS = 40  # draws of the strings' places along the row before the one with fewest fruit in the way
@@ -115,5 +116,5 @@ class HighWireGrower(PepperPlantGrower):
                 return
 
     def strings(self) -> list[tuple[float, ...]]:
-        return [tuple(round(float(v), 6) for v in foot) for foot in self.feet]
+        return [_round(foot) for foot in self.feet]
 
