@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from renderloop.perception.scoring import RunScore, share_inside
+from renderloop.perception.scoring import FrameTruth, RunScore, share_inside
+from renderloop.scene.model import NEIGHBOUR_FRUIT_ID
 
 RIPE_BIG, RIPE_SMALL, UNRIPE_BIG = 1, 2, 3
 
@@ -13,6 +14,8 @@ def _mask() -> np.ndarray:
     mask[10:50, 10:50] = RIPE_BIG  # 40 x 40: findable
     mask[80:92, 100:112] = RIPE_SMALL  # 12 x 12: under the 20 px rule
     mask[60:100, 20:60] = UNRIPE_BIG
+    mask[10:40, 120:150] = NEIGHBOUR_FRUIT_ID  # a neighbouring row's fruit, cut in two by a string at column 134
+    mask[:, 134] = 0
     return mask
 
 
@@ -23,7 +26,7 @@ def _score(*boxes: list[float], label: str = "ripe") -> dict:
 
 
 def test_a_box_on_a_findable_pepper_is_a_hit_and_a_box_on_nothing_is_false() -> None:
-    summary = _score([11, 9, 50, 49], [120, 10, 150, 40])
+    summary = _score([11, 9, 50, 49], [120, 60, 150, 90])
     assert (summary["ripe_findable"], summary["ripe_found"]) == (1, 1)
     assert (summary["detections_scored"], summary["false_detections"]) == (2, 1)
 
@@ -58,3 +61,12 @@ def test_share_inside_is_the_largest_covered_share_of_the_box() -> None:
     assert share_inside([0, 0, 10, 10], []) == 0.0
     assert share_inside([0, 0, 10, 10], [(5, 0, 20, 10), (0, 0, 10, 2)]) == pytest.approx(0.5)
     assert share_inside([0, 0, 10, 10], [(-5, -5, 15, 15)]) == pytest.approx(1.0)
+
+
+def test_a_box_on_a_neighbouring_rows_fruit_is_neither_a_hit_nor_false_and_a_box_mostly_off_it_is_false() -> None:
+    truth = FrameTruth.of_mask(_mask())
+    assert truth.neighbours == [(120, 10, 150, 40)] and NEIGHBOUR_FRUIT_ID not in truth.peppers  # one fruit, string and all
+    summary = _score([121, 11, 149, 41])
+    assert summary["detections_scored"] == 0 and summary["false_detections"] == 0
+    summary = _score([140, 30, 160, 60])  # a sixth of it on the fruit
+    assert summary["detections_scored"] == 1 and summary["false_detections"] == 1

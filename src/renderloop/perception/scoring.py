@@ -10,27 +10,62 @@ Peppers too small to count are ignore regions, as COCO's `iscrowd` boxes are (an
 or lies on one (at least half of the detection's box inside the pepper's), is neither
 a hit nor a false detection. IoU alone would call a box on a 12 px pepper false for a
 3 px offset, though it found a real pepper that the recall does not ask for.
+
+The neighbouring rows' fruit are ignore regions too: real peppers, seen under and
+through the scanned canopy, that no count asks for. The masks mark them all with one
+id (`NEIGHBOUR_FRUIT_ID`), so each connected patch of it, small gaps closed (a string
+or a leaf's edge across a fruit), is one region.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+from scipy import ndimage
 
 from renderloop.perception.boxes import box_area, box_iou, intersection
+from renderloop.scene.model import NEIGHBOUR_FRUIT_ID
 
 MIN_SIDE = 20
 MATCH_IOU = 0.5
 IGNORE_COVER = 0.5  # share of a detection's box on an ignored pepper that makes it ignored (COCO's crowd rule)
+NEIGHBOUR_GAP = 2  # px: gaps this wide in a neighbouring fruit's pixels are closed before its patches are found
+
+Box = tuple[int, int, int, int]
 
 
-def mask_boxes(mask: np.ndarray) -> dict[int, tuple[int, int, int, int]]:
+def mask_boxes(mask: np.ndarray) -> dict[int, Box]:
     """Pepper id -> box of its visible pixels (x0, y0, x1, y1; x1, y1 one past the last pixel)."""
     ids = np.unique(mask)
     boxes = {}
-    for pepper_id in ids[ids > 0].tolist():
+    for pepper_id in ids[(ids > 0) & (ids != NEIGHBOUR_FRUIT_ID)].tolist():
         rows, cols = np.nonzero(mask == pepper_id)
         boxes[pepper_id] = (int(cols.min()), int(rows.min()), int(cols.max()) + 1, int(rows.max()) + 1)
     return boxes
+
+
+def neighbour_boxes(mask: np.ndarray) -> list[Box]:
+    """Boxes of the neighbouring rows' fruit in `mask`: one per connected patch, gaps of NEIGHBOUR_GAP px closed."""
+    fruit = mask == NEIGHBOUR_FRUIT_ID
+    if not fruit.any():
+        return []
+    closed = ndimage.binary_closing(np.pad(fruit, NEIGHBOUR_GAP), iterations=NEIGHBOUR_GAP)[
+        NEIGHBOUR_GAP:-NEIGHBOUR_GAP, NEIGHBOUR_GAP:-NEIGHBOUR_GAP] | fruit
+    patches = ndimage.find_objects(ndimage.label(closed)[0])
+    return [(cols.start, rows.start, cols.stop, rows.stop) for rows, cols in patches]
+
+
+@dataclass(frozen=True)
+class FrameTruth:
+    """What one frame's mask says: the boxes of the scene's peppers and of the neighbouring rows' fruit."""
+
+    peppers: dict[int, Box]
+    neighbours: list[Box]
+
+    @classmethod
+    def of_mask(cls, mask: np.ndarray) -> FrameTruth:
+        return cls(mask_boxes(mask), neighbour_boxes(mask))
 
 
 def match(detections: list[dict], truth: dict[int, tuple[int, int, int, int]]) -> dict[int, int]:
@@ -72,16 +107,17 @@ class RunScore:
         return cls({p.id: p.ripe for p in scene.peppers}, {p.id: np.asarray(p.center) for p in scene.peppers})
 
     def add(self, detections: list[dict], mask: np.ndarray) -> None:
-        self.add_boxes(detections, mask_boxes(mask))
+        self.add_truth(detections, FrameTruth.of_mask(mask))
 
-    def add_boxes(self, detections: list[dict], truth: dict[int, tuple[int, int, int, int]]) -> None:
-        """`add` with the mask's boxes read already: scoring one frame at many thresholds reads its mask once."""
+    def add_truth(self, detections: list[dict], frame: FrameTruth) -> None:
+        """`add` with the mask read already: scoring one frame at many thresholds reads its mask once."""
+        truth = frame.peppers
         matched = match(detections, truth)
-        too_small = [box for box in truth.values() if not findable(box)]
+        ignored = [box for box in truth.values() if not findable(box)] + frame.neighbours
         for index, detection in enumerate(detections):
             pepper = matched.get(index)
             if pepper is None:
-                if share_inside(detection["bbox"], too_small) >= IGNORE_COVER:
+                if share_inside(detection["bbox"], ignored) >= IGNORE_COVER:
                     continue
                 self.detections += 1
                 self.false += 1

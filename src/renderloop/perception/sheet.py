@@ -8,7 +8,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from renderloop.io.atomic import atomic_path
-from renderloop.perception.scoring import findable, mask_boxes
+from renderloop.perception.scoring import FrameTruth, findable
 from renderloop.render.frames import read_png
 from renderloop.rundir import names
 from renderloop.rundir.files import read_scene
@@ -16,7 +16,7 @@ from renderloop.rundir.models import DetectionFrame
 
 ROWS = 6
 COLORS = {"ripe": (255, 40, 40), "unripe": (0, 220, 255)}
-SMALL = (160, 160, 160)  # truth too small to be scored
+IGNORED = (160, 160, 160)  # truth not scored: too small, or a neighbouring row's fruit
 
 
 def _pick(frames: list[DetectionFrame], rows: int) -> list[DetectionFrame]:
@@ -40,9 +40,12 @@ def draw_detection_sheet(run_dir: Path, frames: list[DetectionFrame], path: Path
             draw.rectangle(d.bbox, outline=COLORS[d.label], width=2)
             draw.text((d.bbox[0] + 2, d.bbox[1] + 1), f"{d.score:.2f}", fill=COLORS[d.label])
         draw = ImageDraw.Draw(right)
-        for pepper, box in mask_boxes(read_png(run_dir / names.frame_file(names.MASKS, frame.index), np.uint16)).items():
-            color = COLORS["ripe" if ripe[pepper] else "unripe"] if findable(box) else SMALL
+        truth = FrameTruth.of_mask(read_png(run_dir / names.frame_file(names.MASKS, frame.index), np.uint16))
+        for pepper, box in truth.peppers.items():
+            color = COLORS["ripe" if ripe[pepper] else "unripe"] if findable(box) else IGNORED
             draw.rectangle(box, outline=color, width=2)
+        for box in truth.neighbours:
+            draw.rectangle(box, outline=IGNORED, width=1)
         tiles.append((left, right))
     width, height = tiles[0][0].size
     sheet = Image.new("RGB", (2 * width + 4, len(tiles) * (height + 4)), (255, 255, 255))

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from renderloop.perception.detector import PASS_FLOOR, Detector
-from renderloop.perception.scoring import RunScore, mask_boxes
+from renderloop.perception.scoring import FrameTruth, RunScore
 from renderloop.perception.stage import NEEDS as DETECT_NEEDS
 from renderloop.perception.stage import read_rgb_frame
 from renderloop.perception.tiling import Layout
@@ -31,7 +31,6 @@ from renderloop.scene.model import Scene
 THRESHOLDS = tuple(round(t, 2) for t in np.arange(PASS_FLOOR, 0.96, 0.01))  # below the floor, fused boxes were not kept
 
 Progress = Callable[[int, int], None]
-Truth = dict[int, tuple[int, int, int, int]]
 
 
 @dataclass(frozen=True)
@@ -55,7 +54,7 @@ class ThresholdScore:
 class SearchedRun:
     """One run's frames searched at the floor: the detections and the mask's boxes of each frame."""
     scene: Scene
-    frames: list[tuple[list[dict], Truth]]
+    frames: list[tuple[list[dict], FrameTruth]]
 
 
 def search_run(run_dir: Path, detector: Detector, layouts: Sequence[Layout], mirror: bool,
@@ -69,7 +68,7 @@ def search_run(run_dir: Path, detector: Detector, layouts: Sequence[Layout], mir
         if progress:
             progress(index, count)
         found = [d.to_json() for d in detector.detect(read_rgb_frame(run_dir, index), PASS_FLOOR, layouts, mirror)]
-        frames.append((found, mask_boxes(read_png(run_dir / names.frame_file(names.MASKS, index), np.uint16))))
+        frames.append((found, FrameTruth.of_mask(read_png(run_dir / names.frame_file(names.MASKS, index), np.uint16))))
     return SearchedRun(scene, frames)
 
 
@@ -81,7 +80,7 @@ def score_thresholds(runs: Sequence[SearchedRun], thresholds: Sequence[float] = 
         for run in runs:
             score = RunScore.of_scene(run.scene)
             for detections, truth in run.frames:
-                score.add_boxes([d for d in detections if d["score"] >= threshold], truth)
+                score.add_truth([d for d in detections if d["score"] >= threshold], truth)
             totals += (score.found_ripe, score.findable_ripe, score.false, score.detections)
         scores.append(ThresholdScore(float(threshold), *(int(v) for v in totals)))
     return scores

@@ -46,7 +46,7 @@ from renderloop.render import materials as looks
 from renderloop.render.camera import Intrinsics, to_gl_camera
 from renderloop.render.frame import RenderedFrame
 from renderloop.scene.meshes import Mesh
-from renderloop.scene.model import MAX_PEPPER_ID, Environment, Scene
+from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Environment, Scene
 from renderloop.scene.objects import SceneObject, greenhouse_objects
 
 __all__ = ["CyclesRenderer", "RenderedFrame", "SceneObject", "greenhouse_objects", "VIEW_TRANSFORM"]
@@ -362,7 +362,7 @@ class CyclesRenderer:
         z = channels[_PASSES["z"]]
         near, far = self.clip
         depth = np.where(np.isfinite(z) & (z >= near) & (z <= far), z, 0.0).astype(np.float32)
-        mask = np.rint(channels[_PASSES["index"]]).clip(0, MAX_PEPPER_ID).astype(np.uint16)
+        mask = np.rint(channels[_PASSES["index"]]).clip(0, NEIGHBOUR_FRUIT_ID).astype(np.uint16)
         rgb = srgb_oetf_u8(channels[_PASSES["rgb"]][..., :3])
         timings = {key: _seconds(header.get(f"cycles.ViewLayer.{key}")) for key in ("render_time", "synchronization_time")}
         return RenderedFrame(rgb=rgb, depth=depth, mask=mask, timings=timings)

@@ -26,6 +26,7 @@ from renderloop.scene.objects import SceneObject, greenhouse_objects
 from renderloop.scene.world import shape_geom
 
 CAMERA = "render_camera"
+GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)  # a plain int: numpy compares an array with the enum object in Python, pixel by pixel
 
 
 def _mesh_asset(asset: ET.Element, name: str, mesh) -> None:
@@ -92,8 +93,14 @@ class RasterRenderer:
         self.near, self.far = config.camera.clip
         self.renderer = mujoco.Renderer(self.model, intrinsics.height, intrinsics.width)
         self.pepper_of_geom = np.zeros(self.model.ngeom + 1, dtype=np.uint16)  # index -1 (background) lands on the extra 0
-        for obj in filter(lambda obj: obj.pass_index, objects):  # a mesh's geom has the object's name, a shape's its own
-            for name in [shape.name for shape in obj.shapes] if obj.shapes else [obj.name]:
+        for obj in filter(lambda obj: obj.pass_index, objects):  # geom names as _add_object gives them
+            if obj.shapes:
+                names = [shape.name for shape in obj.shapes]
+            elif obj.instances is not None and obj.instances.rigid:
+                names = [f"{obj.name}_{k}" for k in range(len(obj.instances.template))]
+            else:
+                names = [obj.name]
+            for name in names:
                 geom = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, name)
                 if geom >= 0:  # -1: an empty mesh, not drawn
                     self.pepper_of_geom[geom] = obj.pass_index
@@ -114,7 +121,7 @@ class RasterRenderer:
         segmentation = renderer.render()
         renderer.disable_segmentation_rendering()
         depth[(depth < self.near) | (depth >= self.far * 0.9999)] = 0.0
-        geoms = np.where(segmentation[:, :, 1] == mujoco.mjtObj.mjOBJ_GEOM, segmentation[:, :, 0], -1)
+        geoms = np.where(segmentation[:, :, 1] == GEOM, segmentation[:, :, 0], -1)
         mask = self.pepper_of_geom[geoms]
         return RenderedFrame(rgb=rgb, depth=depth, mask=mask, timings={"total": time.perf_counter() - start})
 

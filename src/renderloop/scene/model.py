@@ -4,7 +4,8 @@ It stores the procedural description of every plant (stem polyline, leaves, flow
 fruit shape parameters), not vertices: `renderloop.scene.plant_meshes` turns it into
 the same triangle meshes for every consumer, so the file stays small and exact.
 Metres, world frame ENU, z up. Pepper ids are positive (0 is background in masks)
-and below 32768 (Blender's object pass_index limit).
+and below 32767; the masks mark every fruit of the neighbouring rows 32767 (Blender's
+object pass_index limit), a real pepper that no count asks for.
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from renderloop.errors import UserError, problem
 
 FORMAT_VERSION = 1
-MAX_PEPPER_ID = 32767
+MAX_PEPPER_ID = 32766
+NEIGHBOUR_FRUIT_ID = 32767
 
 Vec3 = tuple[float, float, float]
 Side = Literal["left", "right"]
@@ -143,7 +145,7 @@ class Workstation(Frozen):
 
 class Prototype(Frozen):
     """A plant of the neighbouring rows, grown once (its pot's base at x = y = 0) and stood in many places. Its fruit
-    are drawn but never counted: they are in no mask (instance id 0) and not in the scene's `peppers`."""
+    are drawn but never counted: the masks mark them NEIGHBOUR_FRUIT_ID, and they are not in the scene's `peppers`."""
 
     plant: Plant
     fruit: list[Pepper]

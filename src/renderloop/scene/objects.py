@@ -24,7 +24,7 @@ import numpy as np
 from renderloop.scene import meshes
 from renderloop.scene.materials import MATERIALS, RGBA
 from renderloop.scene.meshes import Mesh
-from renderloop.scene.model import MAX_PEPPER_ID, Environment, Plant, Scene
+from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Environment, Plant, Scene
 from renderloop.scene.plant_meshes import LEAF_SHAPES, PETIOLE, leaf_template, leaf_transform, plant_meshes
 
 __all__ = ["Box", "Cylinder", "Instances", "SceneObject", "greenhouse_objects", "collision_objects", "static_objects",
@@ -110,7 +110,7 @@ class Instances:
 @dataclass(frozen=True)
 class SceneObject:
     """One object of a view: a mesh, copies of templates or primitive shapes, a material of
-    `scene.materials.MATERIALS`, its instance id (`pass_index`, a pepper's id; 0 for everything else),
+    `scene.materials.MATERIALS`, its instance id (`pass_index`: a pepper's id, NEIGHBOUR_FRUIT_ID for the neighbouring rows' fruit, 0 for everything else),
     an object colour (sRGB, for materials that take the object's colour) and the number its material
     reads beside it (`alpha`: a fruit's ripe share), smooth shading, and an optional per-vertex sRGB
     colour (the leaf colour of each blade)."""
@@ -131,8 +131,8 @@ class SceneObject:
             raise ValueError(f"{self.name}: an object is one of a mesh, copies of templates or primitive shapes")
         if self.material not in MATERIALS:
             raise ValueError(f"{self.name}: no material {self.material!r}")
-        if not 0 <= self.pass_index <= MAX_PEPPER_ID:
-            raise ValueError(f"{self.name}: pass_index {self.pass_index} outside 0..{MAX_PEPPER_ID}")
+        if not 0 <= self.pass_index <= NEIGHBOUR_FRUIT_ID:
+            raise ValueError(f"{self.name}: pass_index {self.pass_index} outside 0..{NEIGHBOUR_FRUIT_ID}")
 
     def triangles(self) -> Mesh:
         """The mesh, the copies merged, or the shapes' meshes merged in order (what a triangle renderer draws)."""
@@ -291,7 +291,7 @@ def _yaw(position: tuple[float, float, float], yaw: float) -> np.ndarray:
 def _background_plants(environment: Environment) -> list[SceneObject]:
     """The neighbouring plants as copies of the prototypes, one object per part (pot, stem, leaves, flowers, calyces,
     fruit of each colour) whose templates are the prototypes' parts. A copy's leaves are one template in one
-    colour; its fruit are drawn in their material with instance id 0: not peppers of the masks."""
+    colour; its fruit are drawn in their material with instance id NEIGHBOUR_FRUIT_ID: real peppers, never counted."""
     if not environment.plants:
         return []
     parts: dict[tuple[str, str], dict[int, tuple[Mesh, np.ndarray, float, np.ndarray | None]]] = {}
@@ -335,7 +335,8 @@ def _background_plants(environment: Environment) -> list[SceneObject]:
             alpha=np.array([by_prototype[copy.prototype][2] for copy in copies]),
             template_rgb=tuple(vertex_rgb) if all(v is not None for v in vertex_rgb) else None,
         )
-        objects.append(SceneObject(f"background_{part}", material=material, smooth=part != "pot", instances=instances))
+        objects.append(SceneObject(f"background_{part}", material=material, smooth=part != "pot", instances=instances,
+                                   pass_index=NEIGHBOUR_FRUIT_ID if part.startswith("fruit_") else 0))
     return objects
 
 
