@@ -188,7 +188,7 @@ def test_a_fruit_seen_often_but_from_one_side_only_is_weak(scene):
     assert len(found.weak_centers) == 1
 
 
-def test_a_fruit_seen_once_is_a_lone_detection_and_widens_the_interval_upward_a_stray_view_does_not(scene):
+def test_a_fruit_seen_once_is_a_lone_detection_where_to_look_again_and_widens_the_interval_upward_a_stray_view_does_not(scene):
     plant = scene.plants[0]
     spot = empty_spot(scene, plant)
     fruit = np.array(next(p.center for p in scene.peppers_of(plant.id) if p.ripe))
@@ -200,6 +200,7 @@ def test_a_fruit_seen_once_is_a_lone_detection_and_widens_the_interval_upward_a_
     found = from_evidence(scene, gathered, counting.interval).plants[plant.id]
     truth = ripe_truth(scene)[plant.id]
     assert found.low == found.estimate == truth < found.high
+    assert found.lone_points.shape == (1, 3) and np.linalg.norm(found.lone_points[0] - spot) < 4 * NOISE  # the point itself
 
 
 def test_an_unseen_fraction_widens_the_interval_upward(scene, all_round):

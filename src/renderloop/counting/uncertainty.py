@@ -8,7 +8,8 @@ the true count may be from it, from four kinds of evidence:
    view directions, from its centre to the cameras, all within `min_spread` of one another). A weak
    cluster may be a false detection that clustered.
 2. **Lone detections.** A detection in no cluster and farther than 2 eps (a fruit's width) from
-   every counted fruit: a fruit seen once, which the count cannot take for a fruit.
+   every counted fruit: a fruit seen once, which the count cannot take for a fruit. Their points
+   (`.lone_points`) are where a mission should look again, as are the weak clusters'.
 3. **Redraws.** Each row is counted again with other draws of its random fixed set (the subsample,
    or the augmentation's copies; `count_rows(..., draw=r)`, each draw its own stream of the run's
    seed). Draw 0 is the count itself, so nothing about the estimate changes; clusters that split or
@@ -40,7 +41,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -80,6 +81,7 @@ class PlantEvidence:
     draws: tuple[tuple[ClusterEvidence, ...], ...]  # the plant's clusters in each draw; draw 0 is the count
     lone: tuple[int, ...]  # per draw, the plant's detections in no cluster and away from every counted fruit
     unseen: float | None  # share of its canopy box no depth frame has seen; None: unknown
+    lone_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (L, 3) draw 0's lone detections, m
 
     @property
     def estimate(self) -> int:
@@ -111,6 +113,7 @@ class PlantUncertainty(CountUncertainty):
     id: int
     row: int
     weak_centers: np.ndarray  # (K, 3) world positions of the count's weak clusters, m
+    lone_points: np.ndarray  # (L, 3) world positions of the count's lone detections (fruit seen once), m
     redraw_counts: np.ndarray  # (R,) the plant's count in each draw; [0] is the estimate
     unseen: float | None  # share of the canopy box no depth frame has seen; None: unknown
     clusters: tuple[ClusterEvidence, ...]  # the count's clusters (draw 0)
@@ -136,10 +139,10 @@ def view_spread(center: np.ndarray, cameras: np.ndarray) -> float:
 
 
 def _draw_evidence(scene: Scene, rows: list[RowCount], seen_in: np.ndarray, cameras: Mapping[int, np.ndarray],
-                   counting: CountingConfig) -> tuple[dict[int, list[ClusterEvidence]], dict[int, int]]:
+                   counting: CountingConfig) -> tuple[dict[int, list[ClusterEvidence]], dict[int, list[np.ndarray]]]:
     """Per plant, the evidence of the clusters credited to it in one draw of every row, and its lone detections."""
     plants: dict[int, list[ClusterEvidence]] = {}
-    lone: dict[int, int] = {}
+    lone: dict[int, list[np.ndarray]] = {}
     layout = {row.id: row for row in scene.rows}
     for row in rows:
         clusters = row.clusters
@@ -154,7 +157,7 @@ def _draw_evidence(scene: Scene, rows: list[RowCount], seen_in: np.ndarray, came
             if len(clusters.centers) and np.linalg.norm(clusters.centers - point, axis=1).min() <= LONE_AWAY * counting.eps:
                 continue  # a stray view of a counted fruit, not a fruit seen once
             plant = plant_of_center(scene, layout[row.row], point, counting.use_layout, counting.volume_margin)
-            lone[plant] = lone.get(plant, 0) + 1
+            lone.setdefault(plant, []).append(point)
     return plants, lone
 
 
@@ -190,7 +193,8 @@ def evidence(scene: Scene, frames: Iterable[DetectionFrame], camera_positions: M
     draws += [count_rows(scene, points, LABEL, counting, seed, draw, memo) for draw in range(1, counting.interval.redraws)]
     per_draw = [_draw_evidence(scene, rows, seen_in, cameras, counting) for rows in draws]
     return {plant.id: PlantEvidence(plant.id, plant.row, tuple(tuple(found.get(plant.id, ())) for found, _ in per_draw),
-                                    tuple(lone.get(plant.id, 0) for _, lone in per_draw), fractions[plant.id])
+                                    tuple(len(lone.get(plant.id, ())) for _, lone in per_draw), fractions[plant.id],
+                                    np.array(per_draw[0][1].get(plant.id, []), dtype=float).reshape(-1, 3))
             for plant in scene.plants}
 
 
@@ -266,7 +270,7 @@ def from_evidence(scene: Scene, plants: Mapping[int, PlantEvidence], interval: I
         weak = np.array([c.center for c in clusters if c.weak(interval)], dtype=float).reshape(-1, 3)
         found[plant.id] = PlantUncertainty(
             basis.estimate, low, high, level, pmf, id=plant.id, row=plant.row, weak_centers=weak,
-            redraw_counts=np.array([len(draw) for draw in basis.draws], dtype=int), unseen=basis.unseen,
+            lone_points=basis.lone_points, redraw_counts=np.array([len(draw) for draw in basis.draws], dtype=int), unseen=basis.unseen,
             clusters=clusters)
     rows = {}
     for row in scene.rows:

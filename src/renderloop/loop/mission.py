@@ -131,7 +131,8 @@ class AdaptiveMission:
                 log.fallback = log.fallback or ("no flight time budget (mission.adaptive.budget_s is 0)"
                                                 if self.settings.budget_s == 0 else None)
                 continue
-            chosen, reason = self._views(plant, uncertainty.plants[plant.id].weak_centers)
+            found = uncertainty.plants[plant.id]
+            chosen, reason = self._views(plant, np.vstack([found.weak_centers, found.lone_points]))
             if not chosen:
                 if decision.round == 0:
                     log.fallback = reason
@@ -164,12 +165,13 @@ class AdaptiveMission:
             self._candidate_views[plant.id] = [c for c in candidate_views(projector) if self.router.grid.is_free(c.dofs)]
         return self._candidate_views[plant.id]
 
-    def _views(self, plant: Plant, weak: np.ndarray) -> tuple[list[ChosenView], str]:
+    def _views(self, plant: Plant, uncertain: np.ndarray) -> tuple[list[ChosenView], str]:
+        """Views chosen to see the uncertain fruit (weak clusters, fruit seen once) and the unseen canopy."""
         budget = self.logs[plant.id].budget
         if budget <= 0:  # before the candidates: they cost MuJoCo checks
             return [], "no flight time budget left"
         start = view_at(plant, self.sim.state.camera_pose[:3, 3])
-        return select(self._candidates(plant), self.maps[plant.id], self.intrinsics, canopy_box(plant), weak,
+        return select(self._candidates(plant), self.maps[plant.id], self.intrinsics, canopy_box(plant), uncertain,
                       start=start, velocity_limits=self.config.planner.velocity_limits, budget_s=budget,
                       max_views=self.settings.views_per_round, min_gain=self.settings.min_gain)
 
@@ -178,6 +180,8 @@ class AdaptiveMission:
         reasons = [f"interval {estimate.low}-{estimate.high} about {estimate.estimate}"]
         if estimate.weak:
             reasons.append(f"{estimate.weak} weakly supported fruit")
+        if estimate.seen_once:
+            reasons.append(f"{estimate.seen_once} fruit seen once")
         if estimate.unseen is not None:
             reasons.append(f"{100 * estimate.unseen:.0f} % of the canopy unseen")
         return ", ".join(reasons)
@@ -274,4 +278,4 @@ class AdaptiveMission:
 
 def _estimate(plant: PlantUncertainty) -> Estimate:
     return Estimate(estimate=plant.estimate, low=plant.low, high=plant.high, weak=len(plant.weak_centers),
-                    unseen=None if plant.unseen is None else round(float(plant.unseen), 6))
+                    seen_once=len(plant.lone_points), unseen=None if plant.unseen is None else round(float(plant.unseen), 6))

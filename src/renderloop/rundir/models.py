@@ -194,6 +194,7 @@ class Estimate(FileModel):
     high: Count
     weak: Count  # counted fruit whose cluster is weakly supported
     unseen: Unit | None  # share of the canopy box no depth frame has seen
+    seen_once: Count = 0  # lone detections: fruit seen once, not counted
 
 
 class MissionView(FileModel):
