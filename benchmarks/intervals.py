@@ -38,11 +38,12 @@ from renderloop.counting.uncertainty import (
 from renderloop.rundir import files
 
 # The grid: fine where a parameter first widens an interval at 90 % (a weak cluster false with 5 % or more, a Poisson
-# of mean 0.0513 or more giving a hidden fruit 5 % of the time).
+# of mean 0.0513 or more giving a hidden fruit 5 % of the time), and up to a hidden fruit a plant, for a detector
+# that misses many.
 GRID = {
     "weak_real": (0.5, 0.6, 0.7, 0.8, 0.9, 0.93, 0.95, 0.97, 0.98, 0.99, 1.0),
-    "hidden": (0.0, 0.005, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.075, 0.1, 0.15, 0.2, 0.3),
-    "hidden_per_lone": (0.0, 0.02, 0.04, 0.05, 0.06, 0.075, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0),
+    "hidden": (0.0, 0.005, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.075, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.75, 1.0),
+    "hidden_per_lone": (0.0, 0.02, 0.04, 0.05, 0.06, 0.075, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0),
 }
 
 

@@ -532,7 +532,8 @@ class IntervalConfig(Strict):
     """The interval of each plant's ripe count (renderloop.counting.uncertainty): every counted cluster is a real
     fruit (weak ones with probability `weak_real`), plus hidden fruit ~ Poisson(hidden + hidden_per_lone x lone
     detections + hidden_unseen x unseen fraction), mixed over redraws of the random fixed set. weak_real, hidden and
-    hidden_per_lone are fitted by benchmarks/intervals.py (docs/stages/counting.md)."""
+    hidden_per_lone are fitted by benchmarks/intervals.py on demo runs; the greenhouse preset has its own fit
+    (docs/stages/counting.md)."""
 
     level: Real(0.5, 0.999) = Field(0.9, description="Probability the interval holds the true count (its central quantiles).")
     redraws: Count(1, 64) = Field(

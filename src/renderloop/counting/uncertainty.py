@@ -34,7 +34,8 @@ The interval is of the true count and need not hold the estimate: a plant likely
 its interval above the estimate. Nor is a sum's interval bounded by its plants' widths: many plants
 each unlikely to hide a fruit are, together, likely to hide one.
 
-The parameters were fitted on demo runs by `benchmarks/intervals.py` (docs/stages/counting.md).
+The parameters were fitted on demo runs by `benchmarks/intervals.py`, and the greenhouse preset's on its own
+runs (docs/stages/counting.md).
 """
 
 from __future__ import annotations
@@ -270,8 +271,8 @@ def from_evidence(scene: Scene, plants: Mapping[int, PlantEvidence], interval: I
         weak = np.array([c.center for c in clusters if c.weak(interval)], dtype=float).reshape(-1, 3)
         found[plant.id] = PlantUncertainty(
             basis.estimate, low, high, level, pmf, id=plant.id, row=plant.row, weak_centers=weak,
-            lone_points=basis.lone_points, redraw_counts=np.array([len(draw) for draw in basis.draws], dtype=int), unseen=basis.unseen,
-            clusters=clusters)
+            lone_points=basis.lone_points, redraw_counts=np.array([len(draw) for draw in basis.draws], dtype=int),
+            unseen=basis.unseen, clusters=clusters)
     rows = {}
     for row in scene.rows:
         mine = [found[plant_id] for plant_id in row.plants]

@@ -278,4 +278,5 @@ class AdaptiveMission:
 
 def _estimate(plant: PlantUncertainty) -> Estimate:
     return Estimate(estimate=plant.estimate, low=plant.low, high=plant.high, weak=len(plant.weak_centers),
-                    seen_once=len(plant.lone_points), unseen=None if plant.unseen is None else round(float(plant.unseen), 6))
+                    seen_once=len(plant.lone_points),
+                    unseen=None if plant.unseen is None else round(float(plant.unseen), 6))

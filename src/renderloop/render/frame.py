@@ -11,5 +11,7 @@ import numpy as np
 class RenderedFrame:
     rgb: np.ndarray  # (H, W, 3) uint8, sRGB
     depth: np.ndarray  # (H, W) float32, planar depth along the optical axis, m; 0 = no return or outside the clip range
-    mask: np.ndarray  # (H, W) uint16, pepper id of scene.json where a pepper is the first surface hit, NEIGHBOUR_FRUIT_ID on a neighbouring row's fruit, else 0
+    # (H, W) uint16: the pepper id of scene.json where a pepper is the first surface hit, NEIGHBOUR_FRUIT_ID on a
+    # neighbouring row's fruit, else 0
+    mask: np.ndarray
     timings: dict[str, float] = field(default_factory=dict)  # seconds

@@ -1,9 +1,10 @@
 """Frame files of a run: rgb/, depth/, masks/ (and depth_sensor/), one PNG per camera pose.
 
 Depth PNGs are uint16 at 5000 units per metre (TUM), 0 = no return; masks are uint16
-instance ids, 0 = background, 32767 = a neighbouring row's fruit. Every file is written under a temporary name and
-renamed, and a frame counts as done only when all of its files exist, so a render
-killed at any moment resumes without a missing, duplicated or half-written frame.
+instance ids, 0 = background, 32767 = a neighbouring row's fruit. Every file is written
+under a temporary name and renamed, and a frame counts as done only when all of its
+files exist, so a render killed at any moment resumes without a missing, duplicated or
+half-written frame.
 """
 
 from __future__ import annotations

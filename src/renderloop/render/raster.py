@@ -26,7 +26,7 @@ from renderloop.scene.objects import SceneObject, greenhouse_objects
 from renderloop.scene.world import shape_geom
 
 CAMERA = "render_camera"
-GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)  # a plain int: numpy compares an array with the enum object in Python, pixel by pixel
+GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)  # an int: numpy compares an array with the enum object in Python, pixel by pixel
 
 
 def _mesh_asset(asset: ET.Element, name: str, mesh) -> None:

@@ -110,10 +110,10 @@ class Instances:
 @dataclass(frozen=True)
 class SceneObject:
     """One object of a view: a mesh, copies of templates or primitive shapes, a material of
-    `scene.materials.MATERIALS`, its instance id (`pass_index`: a pepper's id, NEIGHBOUR_FRUIT_ID for the neighbouring rows' fruit, 0 for everything else),
-    an object colour (sRGB, for materials that take the object's colour) and the number its material
-    reads beside it (`alpha`: a fruit's ripe share), smooth shading, and an optional per-vertex sRGB
-    colour (the leaf colour of each blade)."""
+    `scene.materials.MATERIALS`, its instance id (`pass_index`: a pepper's id, NEIGHBOUR_FRUIT_ID for the
+    neighbouring rows' fruit, 0 for everything else), an object colour (sRGB, for materials that take the
+    object's colour) and the number its material reads beside it (`alpha`: a fruit's ripe share), smooth
+    shading, and an optional per-vertex sRGB colour (the leaf colour of each blade)."""
 
     name: str
     mesh: Mesh | None = None
