@@ -2,7 +2,8 @@
 
 Paper preset, the scan's first `--seconds` simulated seconds, in one run side by side:
 - flight alone (the Simulation stepped, no sensor),
-- flight + raster camera at 5 Hz (MuJoCo, in this process) + online detection and counting,
+- flight + raster camera at 5 Hz (MuJoCo, in this process) + online detection and counting, with the
+  detector's default passes (windows and mirror) and with the whole frame searched once,
 - flight + Cycles camera at `--cycles-rate` in `--workers` processes + online detection (with --cycles),
   and how long the physics waited for frames: it waits only when perception asks for a frame that is
   not rendered yet, never while a frame renders that nobody needs yet.
@@ -27,10 +28,12 @@ from renderloop.loop.simulation import Simulation
 from renderloop.loop.stage import OnlinePerception
 
 
-def _config(backend: str, rate_hz: float) -> Config:
+def _config(backend: str, rate_hz: float, one_pass: bool = False) -> Config:
     data = load_config("paper", seed=7).model_dump(mode="json")
     data["renderer"]["backend"] = backend
     data["camera"]["rate_hz"] = rate_hz
+    if one_pass:
+        data["detector"].update(windows=[], mirror=False)
     return Config.model_validate(data)
 
 
@@ -75,6 +78,10 @@ def main() -> None:
         rows["flight alone"] = summary([closed_loop(run_dir, raster, args.seconds, camera=False)[0] for _ in range(args.repeats)])
         raster_runs = [closed_loop(run_dir, raster, args.seconds, camera=True) for _ in range(args.repeats)]
         rows["raster camera 5 Hz + detection"] = summary([r[0] for r in raster_runs])
+        one_pass, one_pass_dir = _config("raster", 5.0, one_pass=True), Path(tmp) / "one_pass"
+        closed_loop(one_pass_dir, one_pass, 1.0, camera=True)
+        rows["raster camera 5 Hz + one-pass detection"] = summary(
+            [closed_loop(one_pass_dir, one_pass, args.seconds, camera=True)[0] for _ in range(args.repeats)])
         if args.cycles:
             cycles_dir = Path(tmp) / "cycles"
             cycles = _config("cycles", args.cycles_rate)
