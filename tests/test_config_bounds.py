@@ -155,6 +155,9 @@ def drawn_values(leaf: Leaf, inside_only: bool = False, cap: float | None = None
         return lengths
     if "anyOf" in schema:
         branch = next(option for option in schema["anyOf"] if option.get("type") != "null")
+        if "properties" in _resolve(branch):  # an optional section: unset, or set (its fields' own bounds are below)
+            defaults = {name: field["default"] for name, field in _resolve(branch)["properties"].items()}
+            return st.sampled_from([(None, False), (defaults, False)])
         values = drawn_values(Leaf(leaf.path, branch), inside_only, cap)
         return st.just((None, False)) | values.map(lambda drawn: (None, False) if drawn[0] is None else drawn)
     choices = _choices(schema)
@@ -317,6 +320,9 @@ def test_every_number_is_bounded_above_and_below_and_every_list_in_length():
         schema = leaf.schema["anyOf"][0] if "anyOf" in leaf.schema else leaf.schema
         if leaf.length:
             bounded = "maxItems" in schema
+        elif "$ref" in schema:  # an optional section: its fields are leaves, checked here, where its model is required
+            bounded = any(schema["$ref"] in (child.get("$ref"), *(r.get("$ref") for r in child.get("allOf", [])))
+                          for _, child in _fields(SCHEMA, ()) if "anyOf" not in child)
         elif schema.get("type") in ("number", "integer") and _choices(schema) is None:
             low, _, high, _ = _bounds(schema)
             bounded = low is not None and high is not None

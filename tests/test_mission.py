@@ -3,6 +3,7 @@ decided is in mission.json, the same for a seed, and a mission that cannot look 
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,8 @@ import pytest
 import yaml
 from conftest import cli, fly_demo_raster
 
-from renderloop.config import Config, deep_merge, preset_overrides, validate
+from renderloop.config import Config, IntervalConfig, deep_merge, preset_overrides, validate
+from renderloop.counting.stage import run_count, run_counting
 from renderloop.loop.simulation import Simulation
 from renderloop.loop.viewpoints import View, camera_position
 from renderloop.pipeline import run_pipeline
@@ -58,6 +60,23 @@ def test_the_mission_looks_again_at_uncertain_plants_from_the_views_it_logs(adap
         assert plant.final.low <= plant.final.estimate <= plant.final.high or plant.final.weak
         for r in plant.rounds:
             assert r.before.high - r.before.low > 0 and "interval" in r.why  # only an uncertain plant is looked at again
+
+
+def test_an_adaptive_runs_count_takes_the_missions_interval_and_a_static_run_the_countings(adaptive_run: Path,
+                                                                                          tmp_path: Path):
+    run_dir = tmp_path / "run"
+    shutil.copytree(adaptive_run, run_dir)
+    wide = IntervalConfig(hidden=3.0)  # about three hidden fruit a plant: no interval can be the estimate alone
+    config = _config().model_copy(update={"mission": _config().mission.model_copy(
+        update={"adaptive": _config().mission.adaptive.model_copy(update={"interval": wide})})})
+    assert run_counting(config).interval == wide
+    static = config.model_copy(update={"mission": config.mission.model_copy(update={"kind": "static"})})
+    assert run_counting(static) == config.counting == _config().counting
+    run_count(run_dir, config)
+    counts = files.read_counts(run_dir)
+    assert counts.settings["interval"]["hidden"] == 3.0
+    assert all(plant.interval.high > plant.estimate for plant in counts.plants)
+    assert files.read_counts(adaptive_run).settings["interval"]["hidden"] == _config().counting.interval.hidden
 
 
 def test_the_harvest_plan_is_redrawn_at_each_decision_from_the_latest_counts(adaptive_run: Path):

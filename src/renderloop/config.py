@@ -590,6 +590,10 @@ class AdaptiveConfig(Strict):
     min_gain: Count(0, 1_000_000) = Field(
         20, description="Unknown cells of the canopy a view must newly see to be worth flying to (an uncertain fruit "
         "it sees counts as a whole canopy's worth).")
+    interval: IntervalConfig | None = Field(
+        None, description="The interval of the count of an adaptive run (counts.json), fitted on adaptive runs: their "
+        "counts rest on views chosen where the first pass was unsure. None: counting.interval. The mission's own "
+        "decisions always use counting.interval: they are taken on a scan as sparse as the first pass.")
 
 
 class MissionConfig(Strict):

@@ -138,6 +138,14 @@ def settings_of(counting: CountingConfig, seed: int) -> dict:
     return {**counting.model_dump(mode="json"), "seed": seed}
 
 
+def run_counting(config: Config) -> CountingConfig:
+    """The counting settings of a run's count: an adaptive run's interval is `mission.adaptive.interval` when set."""
+    interval = config.mission.adaptive.interval
+    if config.mission.kind != "adaptive" or interval is None:
+        return config.counting
+    return config.counting.model_copy(update={"interval": interval})
+
+
 def _current(run_dir: Path, config: Config) -> bool:
     """counts.json was made with these counting settings, and every row's plot is there."""
     try:
@@ -146,11 +154,11 @@ def _current(run_dir: Path, config: Config) -> bool:
     except UserError:
         return False
     plots = all((run_dir / names.row_plot(row.id)).is_file() for row in scene.rows)
-    return plots and recorded.settings == settings_of(config.counting, config.seed)
+    return plots and recorded.settings == settings_of(run_counting(config), config.seed)
 
 
 def _count(run_dir: Path, config: Config, job: Job) -> None:
-    counting = config.counting
+    counting = run_counting(config)
     scene = files.read_scene(run_dir)
     times, poses = files.read_poses(run_dir)
     detections = files.read_detections(run_dir, len(times))
