@@ -34,6 +34,16 @@ def _mesh_asset(asset: ET.Element, name: str, mesh) -> None:
                   face=" ".join(map(str, mesh.faces.ravel())))
 
 
+def _geom_names(obj: SceneObject) -> list[str]:
+    """The names of the geoms `_add_object` makes of `obj`: a shape's own, one per copy of a rigid template, or the
+    object's."""
+    if obj.shapes:
+        return [shape.name for shape in obj.shapes]
+    if obj.instances is not None and obj.instances.rigid:
+        return [f"{obj.name}_{k}" for k in range(len(obj.instances.template))]
+    return [obj.name]
+
+
 def _add_object(asset: ET.Element, world: ET.Element, obj: SceneObject) -> None:
     """One object of the list as geoms, in its flat display colour: a mesh (or copies of templates, merged)
     as a mesh geom named like the object, primitive shapes as one geom each. Copies that are their template
@@ -47,10 +57,10 @@ def _add_object(asset: ET.Element, world: ET.Element, obj: SceneObject) -> None:
         copies = obj.instances
         for index, template in enumerate(copies.templates):
             _mesh_asset(asset, f"{obj.name}_t{index}", template)
-        for k, (index, transform) in enumerate(zip(copies.template, copies.transforms)):
+        for name, index, transform in zip(_geom_names(obj), copies.template, copies.transforms):
             quat = np.zeros(4)
             mujoco.mju_mat2Quat(quat, np.ascontiguousarray(transform[:3, :3]).ravel())
-            ET.SubElement(world, "geom", name=f"{obj.name}_{k}", type="mesh", mesh=f"{obj.name}_t{int(index)}",
+            ET.SubElement(world, "geom", name=name, type="mesh", mesh=f"{obj.name}_t{int(index)}",
                           pos=fmt(*transform[:3, 3]), quat=fmt(*quat), rgba=rgba)
         return
     mesh = obj.triangles()
@@ -93,14 +103,8 @@ class RasterRenderer:
         self.near, self.far = config.camera.clip
         self.renderer = mujoco.Renderer(self.model, intrinsics.height, intrinsics.width)
         self.pepper_of_geom = np.zeros(self.model.ngeom + 1, dtype=np.uint16)  # index -1 (background) lands on the extra 0
-        for obj in filter(lambda obj: obj.pass_index, objects):  # geom names as _add_object gives them
-            if obj.shapes:
-                names = [shape.name for shape in obj.shapes]
-            elif obj.instances is not None and obj.instances.rigid:
-                names = [f"{obj.name}_{k}" for k in range(len(obj.instances.template))]
-            else:
-                names = [obj.name]
-            for name in names:
+        for obj in filter(lambda obj: obj.pass_index, objects):
+            for name in _geom_names(obj):
                 geom = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, name)
                 if geom >= 0:  # -1: an empty mesh, not drawn
                     self.pepper_of_geom[geom] = obj.pass_index
