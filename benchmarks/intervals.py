@@ -13,6 +13,11 @@ coverage reaches the level at every thinning, those of the smallest mean width (
 probability of the true counts). --held RUN... then reports the coverage of the fitted parameters (without
 --calib: the config's, or --set's) on runs the fit never saw. hidden_unseen is not fitted: runs have no voxel map.
 
+The estimate's credit for fruit seen once (`counting.lone_credit`) is fitted apart, for each thinning: the credit
+(0 to 1 by 0.05) of the least mean absolute ripe-yield error of the runs (ties: the most plants exact, then the
+smaller credit), since a scan's density decides how often a detection seen once is a real fruit. The tables'
+"exact" and "error" are at --lone-credit (default 0, the paper's count).
+
     .venv/bin/python benchmarks/intervals.py --calib runs/calib --held runs/held [--every 1 2 4 8 16] [--json out.json]
 """
 
@@ -32,6 +37,7 @@ from renderloop.config import IntervalConfig
 from renderloop.counting.uncertainty import (
     PlantEvidence,
     central_interval,
+    credited,
     evidence,
     plant_pmf,
 )
@@ -45,6 +51,7 @@ GRID = {
     "hidden": (0.0, 0.005, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.075, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.75, 1.0),
     "hidden_per_lone": (0.0, 0.02, 0.04, 0.05, 0.06, 0.075, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0),
 }
+CREDITS = tuple(round(0.05 * k, 2) for k in range(21))  # counting.lone_credit, 0 to 1
 
 
 @dataclass(frozen=True)
@@ -97,9 +104,38 @@ def _shape(plant: PlantEvidence, interval: IntervalConfig) -> tuple:
     return tuple((len(draw) - w, w, lone) for draw, w, lone in zip(plant.draws, weak, plant.lone)), plant.unseen
 
 
-def score(cases: list[Case], interval: IntervalConfig, shapes: list[tuple] | None = None) -> dict:
-    """Coverage, mean width and mean log probability of the truth, over all cases and per thinning. Plants of one
-    shape (`_shape`) have one distribution, computed once; `shapes`: the cases' shapes, when already known."""
+def yield_error(cases: list[Case], lone_credit: float) -> tuple[float, float]:
+    """Mean absolute ripe-yield error of the runs (%, each run's plants summed) and the share of plants exact, with
+    the estimate crediting lone detections."""
+    runs: dict[str, list[int]] = {}
+    exact = []
+    for case in cases:
+        estimate = credited(case.plant, lone_credit)
+        totals = runs.setdefault(case.run, [0, 0])
+        totals[0] += estimate
+        totals[1] += case.truth
+        exact.append(estimate == case.truth)
+    errors = [abs(estimate - truth) / truth for estimate, truth in runs.values() if truth]
+    return 100 * float(np.mean(errors)) if errors else math.nan, float(np.mean(exact))
+
+
+def fit_credit(cases: list[Case]) -> dict[int, dict]:
+    """Per thinning, the lone credit of the least mean absolute yield error (module docstring)."""
+    fitted = {}
+    for every in sorted({case.every for case in cases}):
+        mine = [case for case in cases if case.every == every]
+        options = [(credit, *yield_error(mine, credit)) for credit in CREDITS]
+        credit, error, exact = min(options, key=lambda option: (option[1], -option[2], option[0]))
+        fitted[every] = {"lone_credit": credit, "error_pct": error, "exact": exact,
+                         "error_pct_without": options[0][1], "exact_without": options[0][2]}
+    return fitted
+
+
+def score(cases: list[Case], interval: IntervalConfig, shapes: list[tuple] | None = None,
+          lone_credit: float = 0.0) -> dict:
+    """Coverage, mean width and mean log probability of the truth, over all cases and per thinning, and the yield
+    error at `lone_credit`. Plants of one shape (`_shape`) have one distribution, computed once; `shapes`: the
+    cases' shapes, when already known."""
     shapes = shapes if shapes is not None else [_shape(case.plant, interval) for case in cases]
     first = {}
     for case, shape in zip(cases, shapes):
@@ -112,13 +148,13 @@ def score(cases: list[Case], interval: IntervalConfig, shapes: list[tuple] | Non
     for case, shape in zip(cases, shapes):
         pmf, low, high = distributions[shape]
         probability = pmf[case.truth] if case.truth < len(pmf) else 0.0
-        rows.append((case.every, low <= case.truth <= high, high - low, math.log(max(probability, 1e-300)),
-                     case.plant.estimate == case.truth))
+        rows.append((case.every, low <= case.truth <= high, high - low, math.log(max(probability, 1e-300)), case))
 
     def summary(selected: list[tuple]) -> dict:
+        error, exact = yield_error([r[4] for r in selected], lone_credit)
         return {"plants": len(selected), "coverage": float(np.mean([r[1] for r in selected])),
                 "mean_width": float(np.mean([r[2] for r in selected])), "log_probability": float(np.mean([r[3] for r in selected])),
-                "exact": float(np.mean([r[4] for r in selected]))}
+                "exact": exact, "error_pct": error}
 
     everies = sorted({r[0] for r in rows})
     return {"all": summary(rows), "every": {every: summary([r for r in rows if r[0] == every]) for every in everies}}
@@ -143,12 +179,21 @@ def fit(cases: list[Case], base: IntervalConfig) -> tuple[IntervalConfig, dict, 
 
 def print_table(title: str, result: dict, level: float) -> None:
     print(f"\n{title}")
-    print(f"{'frames':>10} {'plants':>7} {'exact':>7} {'coverage':>9} {'mean width':>11} {'log p(truth)':>13}")
+    print(f"{'frames':>10} {'plants':>7} {'exact':>7} {'error':>7} {'coverage':>9} {'mean width':>11} {'log p(truth)':>13}")
     for every, part in [*result["every"].items(), ("all", result["all"])]:
         name = "all" if every == "all" else f"every {every}"
-        print(f"{name:>10} {part['plants']:>7} {part['exact']:>7.1%} {part['coverage']:>9.1%} {part['mean_width']:>11.3f} "
-              f"{part['log_probability']:>13.3f}")
-    print(f"(level {level:.0%}; exact: share of plants whose estimate is the truth)")
+        print(f"{name:>10} {part['plants']:>7} {part['exact']:>7.1%} {part['error_pct']:>6.1f}% {part['coverage']:>9.1%} "
+              f"{part['mean_width']:>11.3f} {part['log_probability']:>13.3f}")
+    print(f"(level {level:.0%}; exact: share of plants whose estimate is the truth; error: mean absolute ripe-yield "
+          "error of the runs)")
+
+
+def print_credit(title: str, fitted: dict[int, dict]) -> None:
+    print(f"\n{title}")
+    print(f"{'frames':>10} {'lone credit':>12} {'error':>7} {'exact':>7} {'error at 0':>11} {'exact at 0':>11}")
+    for every, part in fitted.items():
+        print(f"{'every ' + str(every):>10} {part['lone_credit']:>12.2f} {part['error_pct']:>6.1f}% {part['exact']:>7.1%} "
+              f"{part['error_pct_without']:>10.1f}% {part['exact_without']:>11.1%}")
 
 
 def main() -> None:
@@ -157,6 +202,7 @@ def main() -> None:
     parser.add_argument("--held", type=Path, nargs="*", default=[], help="runs (or eval folders) to check on")
     parser.add_argument("--every", type=int, nargs="+", default=[1, 2, 4, 8, 16], help="thinnings of each scan")
     parser.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE", help="counting.interval fields")
+    parser.add_argument("--lone-credit", type=float, default=0.0, help="counting.lone_credit of the tables' estimates")
     parser.add_argument("--json", type=Path, help="write the figures here too")
     args = parser.parse_args()
     if not args.calib and not args.held:
@@ -181,6 +227,7 @@ def main() -> None:
         calib = cases_of(args.calib, "calib")
         start = time.perf_counter()
         interval, result, tried = fit(calib, base)
+        result = score(calib, interval, lone_credit=args.lone_credit)
         print(f"\nfitted on {len(calib)} plant-scans, {tried} parameter sets in {time.perf_counter() - start:.0f} s: "
               + ", ".join(f"{name} = {getattr(interval, name)}" for name in GRID))
         print_table("calibration runs, fitted parameters", result, interval.level)
@@ -189,9 +236,11 @@ def main() -> None:
                     interval.level)
         report["fitted"] = {name: getattr(interval, name) for name in GRID}
         report["calib"] = result
+        report["lone_credit"] = fit_credit(calib)
+        print_credit("calibration runs, the estimate's lone credit fitted per thinning", report["lone_credit"])
     if args.held:
         held = cases_of(args.held, "held")
-        result = score(held, interval)
+        result = score(held, interval, lone_credit=args.lone_credit)
         print_table("held-out runs, " + ("fitted parameters" if args.calib else "these parameters"), result, interval.level)
         report["held"] = result
     if args.json:

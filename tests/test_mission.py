@@ -62,20 +62,22 @@ def test_the_mission_looks_again_at_uncertain_plants_from_the_views_it_logs(adap
             assert r.before.high - r.before.low > 0 and "interval" in r.why  # only an uncertain plant is looked at again
 
 
-def test_an_adaptive_runs_count_takes_the_missions_interval_and_a_static_run_the_countings(adaptive_run: Path,
-                                                                                          tmp_path: Path):
+def test_an_adaptive_runs_count_takes_the_missions_interval_and_lone_credit_and_a_static_run_the_countings(
+        adaptive_run: Path, tmp_path: Path):
     run_dir = tmp_path / "run"
     shutil.copytree(adaptive_run, run_dir)
     wide = IntervalConfig(hidden=3.0)  # about three hidden fruit a plant: no interval can be the estimate alone
     config = _config().model_copy(update={"mission": _config().mission.model_copy(
-        update={"adaptive": _config().mission.adaptive.model_copy(update={"interval": wide})})})
-    assert run_counting(config).interval == wide
+        update={"adaptive": _config().mission.adaptive.model_copy(update={"interval": wide, "lone_credit": 1.0})})})
+    assert run_counting(config).interval == wide and run_counting(config).lone_credit == 1.0
     static = config.model_copy(update={"mission": config.mission.model_copy(update={"kind": "static"})})
     assert run_counting(static) == config.counting == _config().counting
     run_count(run_dir, config)
     counts = files.read_counts(run_dir)
     assert counts.settings["interval"]["hidden"] == 3.0
     assert all(plant.interval.high > plant.estimate for plant in counts.plants)
+    assert all(plant.estimate == len(plant.clusters) + len(plant.seen_once) for plant in counts.plants)
+    assert sum(len(plant.seen_once) for plant in files.read_counts(adaptive_run).plants) > 0  # a sparse first pass
     assert files.read_counts(adaptive_run).settings["interval"]["hidden"] == _config().counting.interval.hidden
 
 

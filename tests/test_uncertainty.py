@@ -203,6 +203,23 @@ def test_a_fruit_seen_once_is_a_lone_detection_where_to_look_again_and_widens_th
     assert found.lone_points.shape == (1, 3) and np.linalg.norm(found.lone_points[0] - spot) < 4 * NOISE  # the point itself
 
 
+def test_the_estimate_credits_each_fruit_seen_once_with_the_lone_credit_rounded_per_plant(scene):
+    a, b = scene.plants[0], scene.plants[1]
+    scan = Scan().all_sides(scene)
+    for plant in (a, b):  # one fruit seen once in each of two plants
+        scan.view(ring(plant, np.zeros(1))[0], [empty_spot(scene, plant)])
+    gathered = evidence(scene, scan.frames, scan.cameras, FAST, seed=0)
+    truth = ripe_truth(scene)
+    for credit, added in ((0.0, 0), (0.4, 0), (0.5, 1), (1.0, 1)):
+        found = from_evidence(scene, gathered, FAST.interval, credit)
+        for plant in scene.plants:
+            assert found.plants[plant.id].estimate == truth[plant.id] + (added if plant.id in (a.id, b.id) else 0)
+            assert len(found.plants[plant.id].clusters) == truth[plant.id]  # the clusters stay what they are
+        assert found.total.estimate == sum(truth.values()) + 2 * added  # 0.4: 0.8 of a fruit in all, none in a plant
+    assert uncertainty(scene, scan.frames, scan.cameras, FAST.model_copy(update={"lone_credit": 1.0}),
+                       seed=0).total.estimate == sum(truth.values()) + 2
+
+
 def test_an_unseen_fraction_widens_the_interval_upward(scene, all_round):
     plant = scene.plants[1]
     truth = ripe_truth(scene)[plant.id]

@@ -568,6 +568,11 @@ class CountingConfig(Strict):
     )
     volume_margin: Real(0.0, 1.0) = Field(0.02, description="Growth of each plant's bounding box before points are tested against it, m.")
     min_views: Count(2, 1000) = Field(2, description="Detections a pepper needs; MinPts = min_views * ceil(points / n_init).")
+    lone_credit: Fraction = Field(
+        0.0, description="Ripe fruit each lone detection (a fruit seen once: one detection in no cluster, farther than "
+        "2 eps from every counted fruit) adds to its plant's estimate, rounded per plant. 0: the paper's count, clusters "
+        "only. A sparse scan sees many real fruit once, a dense one sees a real fruit again: fit it per scan "
+        "(benchmarks/intervals.py).")
     cluster_method: Literal["dbscan", "xi"] = Field("dbscan", description="OPTICS cluster extraction (scikit-learn).")
     xi: Real(0.0, 1.0, low_open=True, high_open=True) = Field(0.05, description="Steepness for cluster_method 'xi'.")
     lof_neighbors: Count(2, 1000) = Field(
@@ -594,6 +599,9 @@ class AdaptiveConfig(Strict):
         None, description="The interval of the count of an adaptive run (counts.json), fitted on adaptive runs: their "
         "counts rest on views chosen where the first pass was unsure. None: counting.interval. The mission's own "
         "decisions always use counting.interval: they are taken on a scan as sparse as the first pass.")
+    lone_credit: Fraction | None = Field(
+        None, description="counting.lone_credit of an adaptive run's count (counts.json), fitted on adaptive runs; "
+        "None: counting.lone_credit. The mission's own decisions use counting.lone_credit.")
 
 
 class MissionConfig(Strict):

@@ -79,11 +79,15 @@ class OnlineCounter:
                           for label in CLASSES}
         return self._rows
 
-    def uncertainty(self, unseen: Mapping[int, float | None] | None = None) -> Uncertainty:
+    def uncertainty(self, unseen: Mapping[int, float | None] | None = None,
+                    model: CountingConfig | None = None) -> Uncertainty:
         """Each plant's, row's and the total ripe count with its interval, from the frames added so far; `unseen`:
-        plant id -> share of its canopy box no depth frame has seen. Costs `counting.interval.redraws` - 1
+        plant id -> share of its canopy box no depth frame has seen; `model`: the counter's settings with another
+        interval and lone credit (an adaptive run's count, `run_counting`). Costs `counting.interval.redraws` - 1
         recounts of the ripe rows whose detections changed since the last call."""
-        return uncertainty(self.scene, self._ordered(), self.camera_positions, self.counting, self.seed, unseen,
+        counting = self.counting if model is None else self.counting.model_copy(
+            update={"interval": model.interval, "lone_credit": model.lone_credit})
+        return uncertainty(self.scene, self._ordered(), self.camera_positions, counting, self.seed, unseen,
                            estimate=self.rows()[LABEL], memo=self._memo)
 
     def counts(self) -> OnlineCount:

@@ -82,7 +82,8 @@ def _plant_uncertainty(scene: Scene, found: Uncertainty | None) -> dict[int, dic
 def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detections, settings: dict,
               seen: dict[int, Seen] | None = None, uncertain: Uncertainty | None = None) -> Counts:
     """The `counts.json` document from the per-row clusterings of both classes; with `uncertain`, the ripe counts'
-    intervals (`renderloop.counting.uncertainty`), which must have been made from the same ripe rows."""
+    estimates (clusters and the credit of lone detections) and intervals (`renderloop.counting.uncertainty`), which
+    must have been made from the same ripe rows."""
     truth, misses = _truth(scene), _scan_misses(scene, seen)
     intervals = _plant_uncertainty(scene, uncertain)
     centers = {plant.id: {label: [] for label in CLASSES} for plant in scene.plants}
@@ -92,10 +93,12 @@ def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detec
                 centers[int(plant_id)][label].append(center)
     plants = [{
         "id": plant.id, "row": plant.row,
-        "estimate": len(centers[plant.id]["ripe"]), "truth": truth[plant.id]["ripe"],
+        "estimate": len(centers[plant.id]["ripe"]) if uncertain is None else uncertain.plants[plant.id].estimate,
+        "truth": truth[plant.id]["ripe"],
         "unripe_estimate": len(centers[plant.id]["unripe"]), "unripe_truth": truth[plant.id]["unripe"],
         "clusters": _rounded(np.array(centers[plant.id]["ripe"]).reshape(-1, 3)),
         "unripe_clusters": _rounded(np.array(centers[plant.id]["unripe"]).reshape(-1, 3)),
+        "seen_once": [] if uncertain is None else _rounded(uncertain.plants[plant.id].lone_points),
         **misses[plant.id],
         **intervals[plant.id],
     } for plant in scene.plants]
@@ -139,11 +142,13 @@ def settings_of(counting: CountingConfig, seed: int) -> dict:
 
 
 def run_counting(config: Config) -> CountingConfig:
-    """The counting settings of a run's count: an adaptive run's interval is `mission.adaptive.interval` when set."""
-    interval = config.mission.adaptive.interval
-    if config.mission.kind != "adaptive" or interval is None:
+    """The counting settings of a run's count: an adaptive run's interval and lone credit are
+    `mission.adaptive.interval` and `.lone_credit` where set."""
+    adaptive = config.mission.adaptive
+    if config.mission.kind != "adaptive":
         return config.counting
-    return config.counting.model_copy(update={"interval": interval})
+    update = {name: value for name in ("interval", "lone_credit") if (value := getattr(adaptive, name)) is not None}
+    return config.counting.model_copy(update=update)
 
 
 def _current(run_dir: Path, config: Config) -> bool:

@@ -8,8 +8,11 @@ the true count may be from it, from four kinds of evidence:
    view directions, from its centre to the cameras, all within `min_spread` of one another). A weak
    cluster may be a false detection that clustered.
 2. **Lone detections.** A detection in no cluster and farther than 2 eps (a fruit's width) from
-   every counted fruit: a fruit seen once, which the count cannot take for a fruit. Their points
-   (`.lone_points`) are where a mission should look again, as are the weak clusters'.
+   every counted fruit: a fruit seen once, which the clustering cannot take for a fruit. Their points
+   (`.lone_points`) are where a mission should look again, as are the weak clusters'. The estimate
+   credits each with `counting.lone_credit` of a fruit, rounded per plant (`credited`): 0, the
+   paper's count of clusters, suits a dense scan, where a real fruit is seen again and a detection
+   seen once is mostly false; a sparse one sees many real fruit only once.
 3. **Redraws.** Each row is counted again with other draws of its random fixed set (the subsample,
    or the augmentation's copies; `count_rows(..., draw=r)`, each draw its own stream of the run's
    seed). Draw 0 is the count itself, so nothing about the estimate changes; clusters that split or
@@ -86,14 +89,21 @@ class PlantEvidence:
 
     @property
     def estimate(self) -> int:
+        """The clusters of the count (draw 0), before any credit for its lone detections."""
         return len(self.draws[0])
+
+
+def credited(plant: PlantEvidence, lone_credit: float) -> int:
+    """The plant's estimate: its clusters plus `lone_credit` of a fruit for each of its lone detections (draw 0),
+    the credit rounded half up."""
+    return plant.estimate + math.floor(lone_credit * plant.lone[0] + 0.5)
 
 
 @dataclass(frozen=True)
 class CountUncertainty:
     """A ripe count and the distribution of the true count it stands for."""
 
-    estimate: int  # the count (draw 0)
+    estimate: int  # the count (draw 0; for a plant, with its lone detections' credit)
     low: int  # the interval's lower bound
     high: int  # the interval's upper bound
     level: float  # probability that the true count is in [low, high]
@@ -258,9 +268,10 @@ def _convolved(pmfs: Iterable[np.ndarray]) -> np.ndarray:
     return total
 
 
-def from_evidence(scene: Scene, plants: Mapping[int, PlantEvidence], interval: IntervalConfig) -> Uncertainty:
-    """The intervals of every plant, row and the total under the model's parameters `interval`: cheap, so a
-    calibration can try many parameters on evidence gathered once."""
+def from_evidence(scene: Scene, plants: Mapping[int, PlantEvidence], interval: IntervalConfig,
+                  lone_credit: float = 0.0) -> Uncertainty:
+    """The estimates (`credited`) and intervals of every plant, row and the total under the model's parameters
+    `interval`: cheap, so a calibration can try many parameters on evidence gathered once."""
     level = interval.level
     found: dict[int, PlantUncertainty] = {}
     for plant in scene.plants:
@@ -270,7 +281,7 @@ def from_evidence(scene: Scene, plants: Mapping[int, PlantEvidence], interval: I
         clusters = basis.draws[0]
         weak = np.array([c.center for c in clusters if c.weak(interval)], dtype=float).reshape(-1, 3)
         found[plant.id] = PlantUncertainty(
-            basis.estimate, low, high, level, pmf, id=plant.id, row=plant.row, weak_centers=weak,
+            credited(basis, lone_credit), low, high, level, pmf, id=plant.id, row=plant.row, weak_centers=weak,
             lone_points=basis.lone_points, redraw_counts=np.array([len(draw) for draw in basis.draws], dtype=int),
             unseen=basis.unseen, clusters=clusters)
     rows = {}
@@ -287,4 +298,4 @@ def uncertainty(scene: Scene, frames: Iterable[DetectionFrame], camera_positions
     """The ripe count's interval per plant (`.plants[id]`), per row (`.rows[id]`) and in total (`.total`), from
     the detections of `frames`; see `evidence` for the arguments and the module docstring for the model."""
     plants = evidence(scene, frames, camera_positions, counting, seed, unseen, estimate, memo)
-    return from_evidence(scene, plants, counting.interval)
+    return from_evidence(scene, plants, counting.interval, counting.lone_credit)

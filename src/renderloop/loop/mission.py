@@ -20,9 +20,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from renderloop.config import Config
+from renderloop.config import Config, CountingConfig
 from renderloop.counting.harvest import plan_harvest
 from renderloop.counting.online import OnlineCounter
+from renderloop.counting.stage import run_counting
 from renderloop.counting.uncertainty import PlantUncertainty, Uncertainty
 from renderloop.errors import UserError
 from renderloop.loop.nbv import (
@@ -149,10 +150,10 @@ class AdaptiveMission:
                                           plants_counted=len(self.ripe), stops=[stop["id"] for stop in plan["stops"]],
                                           expected_ripe=plan["total_expected_ripe"], total_distance=plan["total_distance"]))
 
-    def _uncertainty(self, plants: list[Plant]) -> Uncertainty:
+    def _uncertainty(self, plants: list[Plant], model: CountingConfig | None = None) -> Uncertainty:
         """The counter's intervals, the plants' unseen canopy from their voxel maps."""
         unseen = {plant.id: self.maps[plant.id].unknown_fraction(*canopy_box(plant)) for plant in plants}
-        return self.counter.uncertainty(unseen=unseen)
+        return self.counter.uncertainty(unseen=unseen, model=model)
 
     def _nearest_first(self, plants: list[Plant]) -> list[Plant]:
         here = self.sim.reference[0][:2]
@@ -256,8 +257,9 @@ class AdaptiveMission:
     # The record -------------------------------------------------------------------------------------------------------
 
     def record(self, timestamps: list[float], flight_time: float) -> Mission:
-        """`mission.json` once the flight is over and every frame is in."""
-        uncertainty = self._uncertainty(list(self.scene.plants))
+        """`mission.json` once the flight is over and every frame is in; the final estimates are the run's count's
+        (`run_counting`: an adaptive run's own interval and lone credit)."""
+        uncertainty = self._uncertainty(list(self.scene.plants), run_counting(self.config))
         final = {plant.id: _estimate(uncertainty.plants[plant.id]) for plant in self.scene.plants}
         for trigger, view in self.view_frames:
             taken = [i for i, stamp in enumerate(timestamps) if stamp >= trigger - 1e-9]

@@ -90,12 +90,13 @@ class CountInterval(FileModel):
 class PlantCount(FileModel):
     id: int
     row: int
-    estimate: Count  # ripe fruit counted
+    estimate: Count  # ripe fruit counted: the clusters, and counting.lone_credit of a fruit for each seen once
     truth: Count  # ripe fruit in the scene
     unripe_estimate: Count
     unripe_truth: Count
     clusters: list[Point]  # counted ripe fruit, world frame, m
     unripe_clusters: list[Point]
+    seen_once: list[Point] = []  # ripe detections in no cluster, away from every counted fruit (fruit seen once), m
     unseen: Count | None = None  # ripe fruit of the plant no frame showed (from the masks; null without masks)
     too_small: Count | None = None  # ripe fruit only ever seen smaller than the detector's findable size
     interval: CountInterval | None = None  # where the true ripe count lies (null in files written before intervals)
