@@ -21,7 +21,9 @@ from PIL import Image
 
 from conftest import cli
 from renderloop.report.html import build_report, write_report
+from renderloop.report.view3d import greenhouse_figure
 from renderloop.report.words import signed_pct
+from renderloop.rundir import files
 
 CHROMIUM = Path("/usr/bin/chromium")
 LAUNCH_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
@@ -107,6 +109,24 @@ def test_the_report_opens_offline_without_errors_and_draws_the_3d_view(opened: O
     assert page.locator(".card img").count() >= 1
     assert not opened.errors, opened.errors
     assert not opened.outside, f"the page reached for the network: {opened.outside}"
+
+
+def test_the_3d_view_draws_the_ripe_fruit_seen_once_that_the_estimate_credits(complete_run: Path):
+    scene = files.read_scene(complete_run)
+    times, poses = files.read_poses(complete_run)
+    counts = files.read_counts(complete_run)
+    once = (0.1, -0.2, 0.5)
+    plants = [plant.model_copy(update={"seen_once": [once] if index == 0 else []}) for index, plant in enumerate(counts.plants)]
+
+    def names_and_points(counted) -> dict:
+        figure = greenhouse_figure(scene, counted, files.read_detections(complete_run, len(poses)),
+                                   files.read_flight(complete_run), times, poses, files.read_camera_info(complete_run))
+        return {trace.name: list(zip(trace.x, trace.y, trace.z)) for trace in figure.data if trace.name}
+
+    drawn = names_and_points(counts.model_copy(update={"plants": plants}))
+    assert drawn["ripe fruit seen once"] == [once]
+    without = names_and_points(counts.model_copy(update={"plants": [p.model_copy(update={"seen_once": []}) for p in plants]}))
+    assert "ripe fruit seen once" not in without
 
 
 def test_the_yield_table_comes_first_with_the_numbers_of_counts_json(opened: Opened, complete_run: Path):

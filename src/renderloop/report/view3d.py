@@ -3,8 +3,8 @@
 Tables and the workstation as boxes, plants as their stems, branches and leaves (a
 line per leaf) inside their bounding volumes, the flown path (flight.csv, thinned),
 the camera at a few frames as a short pyramid (groundtruth.txt poses, camera_info
-intrinsics), the detections' 3D points, the counted fruit (counts.json clusters) and
-the true fruit (scene.json). Coordinates are rounded to the millimetre and long paths
+intrinsics), the detections' 3D points, the counted fruit (counts.json clusters), the ripe fruit seen
+once (its seen_once, which counting.lone_credit credits) and the true fruit (scene.json). Coordinates are rounded to the millimetre and long paths
 thinned, so the figure's data stays small beside plotly.js itself. Every trace can be
 switched off in the legend.
 """
@@ -143,6 +143,16 @@ def greenhouse_figure(scene: Scene, counts: Counts, detections: Detections, flig
             text=[f"counted {label} fruit of plant {plant}" for plant, _ in found],
             mode="markers", marker=dict(size=7, color=color, symbol="diamond-open", line=dict(width=2, color=color)),
             name=f"counted {label} fruit", hovertemplate="%{text}<extra></extra>"))
+    once = [(plant.id, point) for plant in counts.plants for point in plant.seen_once]
+    if once:
+        credit = counts.settings.get("lone_credit", 0.0)
+        xyz = np.array([point for _, point in once])
+        traces.append(go.Scatter3d(
+            x=_round(xyz[:, 0]), y=_round(xyz[:, 1]), z=_round(xyz[:, 2]),
+            text=[f"ripe fruit of plant {plant} seen once (the estimate credits {credit:g} of a fruit each)"
+                  for plant, _ in once],
+            mode="markers", marker=dict(size=6, color=RIPE, symbol="circle-open", line=dict(width=1, color=RIPE)),
+            name="ripe fruit seen once", hovertemplate="%{text}<extra></extra>"))
     for ripe, color in ((True, RIPE), (False, UNRIPE)):
         fruit = [p for p in scene.peppers if p.ripe == ripe]
         if not fruit:
