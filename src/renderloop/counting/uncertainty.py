@@ -10,9 +10,9 @@ the true count may be from it, from four kinds of evidence:
 2. **Lone detections.** A detection in no cluster and farther than 2 eps (a fruit's width) from
    every counted fruit: a fruit seen once, which the clustering cannot take for a fruit. Their points
    (`.lone_points`) are where a mission should look again, as are the weak clusters'. The estimate
-   credits each with `counting.lone_credit` of a fruit, rounded per plant (`credited`): 0, the
-   paper's count of clusters, suits a dense scan, where a real fruit is seen again and a detection
-   seen once is mostly false; a sparse one sees many real fruit only once.
+   credits each with `counting.lone_credit` of a fruit, rounded per plant (`credited`; 0: the
+   paper's count of clusters). A dense scan sees a real fruit again, so its detections seen once are
+   more often false and want a small credit; a sparse one sees many real fruit only once.
 3. **Redraws.** Each row is counted again with other draws of its random fixed set (the subsample,
    or the augmentation's copies; `count_rows(..., draw=r)`, each draw its own stream of the run's
    seed). Draw 0 is the count itself, so nothing about the estimate changes; clusters that split or

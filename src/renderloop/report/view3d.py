@@ -3,10 +3,11 @@
 Tables and the workstation as boxes, plants as their stems, branches and leaves (a
 line per leaf) inside their bounding volumes, the flown path (flight.csv, thinned),
 the camera at a few frames as a short pyramid (groundtruth.txt poses, camera_info
-intrinsics), the detections' 3D points, the counted fruit (counts.json clusters), the ripe fruit seen
-once (its seen_once, which counting.lone_credit credits) and the true fruit (scene.json). Coordinates are rounded to the millimetre and long paths
-thinned, so the figure's data stays small beside plotly.js itself. Every trace can be
-switched off in the legend.
+intrinsics), the detections' 3D points, the counted fruit (counts.json clusters), the ripe
+fruit seen once (its seen_once, which counting.lone_credit credits) and the true fruit
+(scene.json). Coordinates are rounded to the millimetre and long paths thinned, so the
+figure's data stays small beside plotly.js itself. Every trace can be switched off in the
+legend.
 """
 
 from __future__ import annotations
