@@ -28,12 +28,14 @@ from renderloop.loop.simulation import Simulation
 from renderloop.loop.stage import OnlinePerception
 
 
-def _config(backend: str, rate_hz: float, one_pass: bool = False) -> Config:
+def _config(backend: str, rate_hz: float, one_pass: bool = False, fast_look: bool = False) -> Config:
     data = load_config("paper", seed=7).model_dump(mode="json")
     data["renderer"]["backend"] = backend
     data["camera"]["rate_hz"] = rate_hz
     if one_pass:
         data["detector"].update(windows=[], mirror=False)
+    if fast_look:
+        data["renderer"]["raster"].update(shadows=False, antialias=0)
     return Config.model_validate(data)
 
 
@@ -82,6 +84,10 @@ def main() -> None:
         closed_loop(one_pass_dir, one_pass, 1.0, camera=True)
         rows["raster camera 5 Hz + one-pass detection"] = summary(
             [closed_loop(one_pass_dir, one_pass, args.seconds, camera=True)[0] for _ in range(args.repeats)])
+        fast, fast_dir = _config("raster", 5.0, one_pass=True, fast_look=True), Path(tmp) / "fast"
+        closed_loop(fast_dir, fast, 1.0, camera=True)
+        rows["  the same, raster without shadows or antialiasing"] = summary(
+            [closed_loop(fast_dir, fast, args.seconds, camera=True)[0] for _ in range(args.repeats)])
         if args.cycles:
             cycles_dir = Path(tmp) / "cycles"
             cycles = _config("cycles", args.cycles_rate)

@@ -3,7 +3,7 @@
 Figures measured side by side in one run on this machine:
 - Cycles, paper scene, 640x480 at the config's default quality and at 128 samples: seconds per
   frame, and the share inside path tracing (Cycles' render_time over the wall time of a frame);
-- raster backend, milliseconds per 640x480 frame;
+- raster backend, milliseconds per 640x480 frame, with the default look and without shadows or antialiasing;
 - frames per second of the whole render stage (PNG encoding and writing included) on the
   demo run with 1 and 2 local workers and on a local 2-CPU Ray cluster, Cycles at the demo's
   default quality.
@@ -63,9 +63,13 @@ def main() -> None:
     default_seconds, default_share = cycles_frames(scene, paper, poses)
     high = paper.model_copy(update={"renderer": paper.renderer.model_copy(update={"samples": args.high_samples})})
     high_seconds, high_share = cycles_frames(scene, high, poses[:1])
-    with RasterRenderer(scene, paper, Intrinsics.from_config(paper.camera)) as raster:
-        raster.render(poses[0])
-        raster_ms = [1000 * raster.render(pose).timings["total"] for pose in poses * 5]
+    raster_ms = {}
+    for name, look in (("default", {}), ("plain", {"shadows": False, "antialias": 0})):
+        update = {"raster": paper.renderer.raster.model_copy(update=look)}
+        config = paper.model_copy(update={"renderer": paper.renderer.model_copy(update=update)})
+        with RasterRenderer(scene, config, Intrinsics.from_config(paper.camera)) as raster:
+            raster.render(poses[0])
+            raster_ms[name] = [1000 * raster.render(pose).timings["total"] for pose in poses * 5]
 
     demo = load_config("demo")
     demo = demo.model_copy(update={"camera": demo.camera.model_copy(update={"rate_hz": 0.25})})  # about 20 frames
@@ -82,7 +86,8 @@ def main() -> None:
         "cycles_default_path_tracing_share": summary(default_share),
         f"cycles_{args.high_samples}spp_s_per_frame": summary(high_seconds),
         f"cycles_{args.high_samples}spp_path_tracing_share": summary(high_share),
-        "raster_ms_per_frame": summary(raster_ms),
+        "raster_ms_per_frame": summary(raster_ms["default"]),
+        "raster_ms_per_frame_no_shadows_or_antialiasing": summary(raster_ms["plain"]),
         "render_stage_fps_1_worker": fps[1],
         "render_stage_fps_2_workers": fps[2],
         "speedup_2_workers": fps[2] / fps[1],

@@ -87,6 +87,8 @@ def rows_of(results: dict, paper_rate: float, quick: bool) -> list[Row]:
         ("render: share inside path tracing, default", render["cycles_default_path_tracing_share"], "goal 0.90", None),
         ("render: raster ms per 640x480 frame", render["raster_ms_per_frame"], "Cycles default",
          1000 * render["cycles_default_s_per_frame"]["median"] / render["raster_ms_per_frame"]["median"]),
+        ("the same without shadows or antialiasing", render["raster_ms_per_frame_no_shadows_or_antialiasing"], "default raster",
+         render["raster_ms_per_frame"]["median"] / render["raster_ms_per_frame_no_shadows_or_antialiasing"]["median"]),
         ("render stage: frames per s, 2 workers", render["render_stage_fps_2_workers"], "1 worker", render["speedup_2_workers"]),
         ("render stage: frames per s, Ray 2 CPUs", render["render_stage_fps_ray_2_cpus"], "1 worker", render["speedup_ray_2_cpus"]),
         ("point cloud ms per 640x480 frame", detect["cloud_ms_per_frame"], "Open3D create_from_depth_image",

@@ -111,9 +111,9 @@ def test_render_writes_the_run_files(flown: Path):
     assert frame.depth.dtype == np.float32 and frame.mask.dtype == np.uint16
     assert not run_render(flown, config)  # complete: skipped
     record = json.loads((flown / "render.json").read_text())
-    del record["renderer"]["bounces"]
+    del record["renderer"]["bounces"], record["renderer"]["raster"]
     (flown / "render.json").write_text(json.dumps(record))
-    assert not run_render(flown, config)  # a record from before bounces were in the config: the same frames
+    assert not run_render(flown, config)  # a record from before bounces and the raster look were in the config
 
 
 def test_killed_render_resumes_to_the_same_files(flown: Path, tmp_path: Path):
@@ -206,6 +206,25 @@ def test_raster_colours_come_from_the_material_table(raster):
     assert tuple(pot) == pytest.approx(display_rgba("pot"))
     pepper = scene.peppers[0]
     assert tuple(model.geom_rgba[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"pepper_{pepper.id}")]) == pytest.approx((*pepper.rgb, 1))
+
+
+def test_the_raster_look_without_shadows_or_antialiasing_changes_the_colour_alone(raster):
+    config, scene, intrinsics, renderer = raster
+    plant = scene.plants[0]
+    pose = look_at(np.array(plant.position) + (0.0, -0.7, 0.5), np.array(plant.position) + (0.0, 0.0, 0.2))
+    before = renderer.render(pose)
+
+    def render(**look) -> np.ndarray:
+        update = {"raster": config.renderer.raster.model_copy(update=look)}
+        with RasterRenderer(scene, config.model_copy(update={"renderer": config.renderer.model_copy(update=update)}), intrinsics) as other:
+            frame = other.render(pose)
+        assert np.array_equal(before.depth, frame.depth) and np.array_equal(before.mask, frame.mask)
+        return frame.rgb.astype(int).sum(axis=2) - before.rgb.astype(int).sum(axis=2)
+
+    unshadowed = render(shadows=False)
+    assert (unshadowed > 30).mean() > 0.01 and unshadowed.min() > -20  # shadowed pixels lit, none darkened but at an edge
+    aliased = render(antialias=0)
+    assert 0 < (aliased != 0).mean() < 0.1  # edges, no longer blended
 
 
 def test_the_render_device_is_not_part_of_the_record(flown: Path):

@@ -482,6 +482,14 @@ class BouncesConfig(Strict):
     transparent: Bounces = Field(4, description="Most transparent bounces.")
 
 
+class RasterConfig(Strict):
+    """MuJoCo's OpenGL look, for a user trading it against speed: on 2 cores through llvmpipe the sun's shadow map
+    and the multisampling are most of a dense frame's cost (docs/stages/render.md)."""
+
+    shadows: bool = Field(True, description="The sun casts shadows (a 2048 x 2048 shadow map).")
+    antialias: Count(0, 16) = Field(4, description="Multisamples per pixel of the colour image; 0 turns antialiasing off.")
+
+
 class RendererConfig(Strict):
     backend: Literal["cycles", "raster"] = Field("cycles", description="'cycles': Blender's path tracer; 'raster': MuJoCo's OpenGL renderer, milliseconds a frame, for tests and previews.")
     # Denoised, one sample is all the detector needs, at a thirtieth of 128's cost (docs/stages/render.md, quality).
@@ -498,6 +506,7 @@ class RendererConfig(Strict):
         "cpu", description="Where Cycles path-traces: 'cpu'; 'gpu': an NVIDIA GPU through OptiX or CUDA, refused when none "
         "answers; 'auto': the GPU when one answers, else the CPU. Speed only: render.json does not record it.")
     depth_noise: DepthNoiseConfig = Field(DepthNoiseConfig(), description="Noise model of the depth image.")
+    raster: RasterConfig = Field(RasterConfig(), description="The raster backend's shadows and antialiasing.")
 
 
 class DetectorConfig(Strict):

@@ -78,13 +78,15 @@ def render_world_xml(objects: list[SceneObject], config: Config, intrinsics: Int
     visual = ET.SubElement(root, "visual")
     ET.SubElement(visual, "global", offwidth=str(intrinsics.width), offheight=str(intrinsics.height))
     ET.SubElement(visual, "map", znear=repr(near), zfar=repr(far))
-    ET.SubElement(visual, "quality", shadowsize="2048")
+    look = config.renderer.raster
+    ET.SubElement(visual, "quality", shadowsize="2048", offsamples=str(look.antialias))
     ET.SubElement(visual, "headlight", ambient="0.3 0.3 0.3", diffuse="0.4 0.4 0.4", specular="0.1 0.1 0.1")
     default = ET.SubElement(root, "default")
     ET.SubElement(default, "geom", contype="0", conaffinity="0")
     asset = ET.SubElement(root, "asset")
     world = ET.SubElement(root, "worldbody")
-    ET.SubElement(world, "light", name="sun", directional="true", pos="0 0 5", dir="0.3 0.4 -1", diffuse="0.6 0.6 0.6", castshadow="true")
+    ET.SubElement(world, "light", name="sun", directional="true", pos="0 0 5", dir="0.3 0.4 -1", diffuse="0.6 0.6 0.6",
+                  castshadow=str(look.shadows).lower())
     for obj in objects:
         _add_object(asset, world, obj)
     rig = ET.SubElement(world, "body", name="camera_rig", mocap="true")

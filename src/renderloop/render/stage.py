@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from renderloop.config import BouncesConfig, Config, SensorConfig
+from renderloop.config import BouncesConfig, Config, RasterConfig, SensorConfig
 from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
 from renderloop.render.contact_sheet import draw_contact_sheet
@@ -54,10 +54,12 @@ def _recorded(run_dir: Path) -> RenderRecord | None:
     recorded = files.read_render_record(run_dir)
     if recorded is None:
         return None
-    if "bounces" not in recorded.renderer:
-        # a record from before the bounces were configurable: its frames had today's defaults, then hard-coded
-        renderer = {"bounces": BouncesConfig().model_dump(mode="json"), **recorded.renderer}
-        recorded = recorded.model_copy(update={"renderer": renderer})
+    # a record from before the bounces or the raster look were configurable: its frames had today's defaults, then
+    # hard-coded
+    missing = {name: section().model_dump(mode="json") for name, section in (("bounces", BouncesConfig), ("raster", RasterConfig))
+               if name not in recorded.renderer}
+    if missing:
+        recorded = recorded.model_copy(update={"renderer": {**missing, **recorded.renderer}})
     if "sensor" not in recorded.camera:  # from before the colour sensor: it was off
         recorded = recorded.model_copy(update={"camera": {**recorded.camera, "sensor": SensorConfig().model_dump(mode="json")}})
     sensor = recorded.camera["sensor"]
