@@ -1,0 +1,153 @@
+"""Typed configuration of a run: one pydantic model per subsystem, presets, YAML in and out.
+
+`Config` and the loading are here; the sections live by subsystem (`scene`, `flight`, `camera`, `perception`,
+`mission`) on the building blocks of `fields`, and every model is importable from `renderloop.config`.
+
+The defaults are the numbers of the reference work (docs/design.md), so the `paper`
+preset is almost empty; `demo` shrinks the greenhouse to one table. A user YAML
+file is deep-merged over the preset, and every unknown key is an error, because a
+misspelt field that silently keeps its default is the worst kind of config bug.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import Field, ValidationError, model_validator
+
+from renderloop.config.camera import BouncesConfig, CameraConfig, DepthNoiseConfig, RasterConfig, RendererConfig, SensorConfig
+from renderloop.config.fields import MAX_LEAVES, Count, Strict
+from renderloop.config.flight import PID, ArmConfig, ControllerConfig, PlannerConfig, RobotConfig, RotorConfig
+from renderloop.config.mission import AdaptiveConfig, MissionConfig
+from renderloop.config.perception import CountingConfig, DetectorConfig, IntervalConfig
+from renderloop.config.scene import (
+    RIPE_COLORS,
+    EnvironmentConfig,
+    GreenhouseConfig,
+    HighWireConfig,
+    PepperConfig,
+    PepperStyleConfig,
+    PlantConfig,
+    PotConfig,
+)
+from renderloop.errors import UserError, problem
+
+__all__ = [
+    "PID", "PRESETS", "RIPE_COLORS", "AdaptiveConfig", "ArmConfig", "BouncesConfig",
+    "CameraConfig", "Config", "ControllerConfig", "CountingConfig", "DepthNoiseConfig", "DetectorConfig",
+    "EnvironmentConfig", "GreenhouseConfig", "HighWireConfig", "IntervalConfig", "MissionConfig", "PepperConfig",
+    "PepperStyleConfig", "PlannerConfig", "PlantConfig", "PotConfig", "RasterConfig", "RendererConfig", "RobotConfig",
+    "RotorConfig", "SensorConfig", "config_schema", "deep_merge", "load_config", "load_resolved", "preset_overrides",
+    "read_config_file", "validate",
+]
+
+
+class Config(Strict):
+    seed: Count(0, 2**63 - 1) = Field(0, description="Seed of every random draw of the run (scene, noise, sampling).")
+    greenhouse: GreenhouseConfig = Field(GreenhouseConfig(), description="Room, tables and workstation.")
+    plants: PlantConfig = Field(PlantConfig(), description="Procedural plants and their fruit.")
+    robot: RobotConfig = Field(RobotConfig(), description="The aerial manipulator.")
+    camera: CameraConfig = Field(CameraConfig(), description="The RGB-D camera on the arm's tip.")
+    planner: PlannerConfig = Field(PlannerConfig(), description="Scan waypoints and trajectory limits.")
+    controller: ControllerConfig = Field(ControllerConfig(), description="Flight and arm control, and the physics step.")
+    renderer: RendererConfig = Field(RendererConfig(), description="Rendering of the camera frames.")
+    detector: DetectorConfig = Field(DetectorConfig(), description="The pepper detector.")
+    counting: CountingConfig = Field(CountingConfig(), description="Yield counting and the harvest plan.")
+    mission: MissionConfig = Field(MissionConfig(), description="How the scan is flown (batch stages, or the loop online).")
+
+    @model_validator(mode="after")
+    def _fits(self) -> Config:
+        total = len(self.greenhouse.tables) * self.greenhouse.plants_per_table
+        if self.plants.bearing is not None and self.plants.bearing > total:
+            raise ValueError(f"plants.bearing: {self.plants.bearing} bearing plants but the greenhouse has {total}")
+        if total * self.plants.most_leaves > MAX_LEAVES:
+            raise ValueError(f"{self.plants.leaves_field}: {total} plants of up to {self.plants.most_leaves} leaves are more than {MAX_LEAVES} leaves")
+        if self.camera.rate_hz > self.controller.rate_hz:
+            raise ValueError(f"camera.rate_hz: frames are taken at control ticks, so {self.camera.rate_hz:g} Hz cannot be "
+                             f"served by a {self.controller.rate_hz:g} Hz controller")
+        return self
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False, default_flow_style=None)
+
+
+def config_schema() -> dict[str, Any]:
+    """JSON schema of the whole config: every field with its description, default and bounds."""
+    return Config.model_json_schema()
+
+
+PRESETS = ("demo", "paper", "greenhouse")
+
+
+def _read_yaml_mapping(text: str, source: str) -> dict[str, Any]:
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1})" if mark is not None else ""
+        raise UserError(f"{source}: not valid YAML{where}") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise UserError(f"{source}: expected a mapping of config sections, got {type(data).__name__}")
+    return data
+
+
+def preset_overrides(name: str) -> dict[str, Any]:
+    if name not in PRESETS:
+        raise UserError(f"unknown preset {name!r} (choose from: {', '.join(PRESETS)})")
+    text = resources.files("renderloop.presets").joinpath(f"{name}.yaml").read_text(encoding="utf-8")
+    return _read_yaml_mapping(text, f"preset {name}")
+
+
+def read_config_file(path: Path) -> dict[str, Any]:
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else "not a UTF-8 text file"
+        raise UserError(f"{path}: cannot read config ({reason})") from None
+    return _read_yaml_mapping(text, str(path))
+
+
+def deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+    """Override wins field by field; nested sections merge instead of being replaced whole."""
+    merged = dict(base)
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(merged.get(key), dict):
+            merged[key] = deep_merge(merged[key], value)
+        else:
+            merged[key] = value
+    return merged
+
+
+def validate(data: dict[str, Any], source: str) -> Config:
+    try:
+        return Config.model_validate(data)
+    except ValidationError as exc:
+        raise UserError(f"{source}: {problem(exc)}") from None
+
+
+def load_config(preset: str = "demo", config_file: Path | None = None, seed: int | None = None,
+                online: bool | None = None, mission: str | None = None) -> Config:
+    """Preset, then the user's YAML over it, then the command line (seed, --online, --mission) over both."""
+    data = preset_overrides(preset)
+    source = f"preset {preset}"
+    if config_file is not None:
+        data = deep_merge(data, read_config_file(config_file))
+        source = str(config_file)
+    if seed is not None:
+        data = deep_merge(data, {"seed": seed})
+    if online is not None:
+        data = deep_merge(data, {"mission": {"online": online}})
+    if mission is not None:
+        data = deep_merge(data, {"mission": {"kind": mission}})
+    return validate(data, source)
+
+
+def load_resolved(path: Path) -> Config:
+    """Read a run directory's `config.yaml` (already complete, so no preset underneath)."""
+    return validate(read_config_file(path), str(path))

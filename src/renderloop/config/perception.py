@@ -1,0 +1,94 @@
+"""The detector and the count (`detector`, `counting`)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import Field, model_validator
+
+from renderloop.config.fields import Count, Fraction, Real, Strict
+from renderloop.perception.tiling import LAYOUT_PATTERN, Layout, layout
+
+
+class DetectorConfig(Strict):
+    model: Path | None = Field(None, description="ONNX model; null means the one shipped in the package.")
+    input_size: Count(64, 2048) = Field(320, description="Side of the square network input, px.")
+    score_threshold: Fraction = Field(0.68, description="Score a detection needs. Fused scores run higher than one "
+                                      "pass's: 0.68 gave at most 5 % false detections on held-out paper runs "
+                                      "(docs/stages/perception.md).")
+    windows: tuple[Annotated[str, Field(pattern=f"^{LAYOUT_PATTERN}$")], ...] = Field(
+        ("2x2", "3x2"), max_length=64,  # the 8 x 8 possible layouts
+        description="Also search the overlapping windows of these columns x rows layouts of each frame, "
+        "where small fruit look larger (one network pass a window; perception/tiling.py); []: the whole frame only.")
+    mirror: bool = Field(True, description="Also search the frame mirrored left to right, the passes fused: one more "
+                         "network pass, for recall at the same rate of false detections (docs/stages/perception.md).")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _grid_of_older_runs(cls, data: Any) -> Any:
+        """Run directories written before the window layouts say `grid: N`, meaning N x N windows."""
+        if isinstance(data, dict) and "grid" in data and "windows" not in data:
+            data = dict(data)
+            grid = data.pop("grid")
+            data["windows"] = [] if grid == 1 else [f"{grid}x{grid}"]
+        return data
+
+    @property
+    def layouts(self) -> list[Layout]:
+        return [layout(text) for text in self.windows]
+
+
+class IntervalConfig(Strict):
+    """The interval of each plant's ripe count (renderloop.counting.uncertainty): every counted cluster is a real
+    fruit (weak ones with probability `weak_real`), plus hidden fruit ~ Poisson(hidden + hidden_per_lone x lone
+    detections + hidden_unseen x unseen fraction), mixed over redraws of the random fixed set. weak_real, hidden and
+    hidden_per_lone are fitted by benchmarks/intervals.py on demo runs; the greenhouse preset has its own fit
+    (docs/stages/counting.md)."""
+
+    level: Real(0.5, 0.999) = Field(0.9, description="Probability the interval holds the true count (its central quantiles).")
+    redraws: Count(1, 64) = Field(
+        8, description="Counts of each row the interval mixes: the estimate and redraws - 1 redraws of the random fixed "
+        "set, each costing as much as counting the ripe rows again.")
+    weak_margin: Real(1.0, 100.0) = Field(
+        2.0, description="A cluster of fewer points than weak_margin x MinPts is weakly supported (2: fewer than twice "
+        "the views a fruit needs).")
+    min_spread: Real(0.0, math.pi) = Field(
+        0.35, description="A cluster whose view directions (its centre to the cameras) all lie within this angle of "
+        "one another was seen from one side only, and is weak, rad.")
+    weak_real: Fraction = Field(1.0, description="Probability that a weak cluster is a real ripe fruit of its plant.")
+    hidden: Real(0.0, 100.0) = Field(
+        0.02, description="Expected ripe fruit of a plant that no cluster stands for, however well it was seen.")
+    hidden_per_lone: Real(0.0, 100.0) = Field(
+        0.3, description="Expected hidden ripe fruit added by each lone detection of the plant: one in no cluster and "
+        "farther than 2 eps from every counted fruit, a fruit seen once.")
+    hidden_unseen: Real(0.0, 1000.0) = Field(
+        4.0, description="Expected hidden ripe fruit of a plant whose canopy box no depth frame has seen, scaled by the "
+        "unseen fraction; a prior (about the ripe fruit a demo or paper plant bears), not fitted.")
+
+
+class CountingConfig(Strict):
+    """Yield counting (OPTICS on the multi-view fruit points of each row) and the harvest plan."""
+
+    points: Count(2, 100_000) = Field(500, description="Size of the fixed point set OPTICS clusters per row and class.")
+    eps: Real(0.001, 1.0) = Field(0.04, description="OPTICS neighbourhood (eps and max_eps), m: about one pepper.")
+    augment_noise_std: Real(0.0, 1.0) = Field(0.01, description="Sigma of the gaussian copies that fill a row up to `points`, m.")
+    use_layout: bool = Field(True, description="Assign and filter points by the plant volumes; false: nearest table and LocalOutlierFactor.")
+    expected_per_plant: Count(1, 1000) = Field(
+        10, description="Fruit a plant may bear (the paper's 10); informational, the counting itself does not use it."
+    )
+    volume_margin: Real(0.0, 1.0) = Field(0.02, description="Growth of each plant's bounding box before points are tested against it, m.")
+    min_views: Count(2, 1000) = Field(2, description="Detections a pepper needs; MinPts = min_views * ceil(points / n_init).")
+    lone_credit: Fraction = Field(
+        0.0, description="Ripe fruit each lone detection (a fruit seen once: one detection in no cluster, farther than "
+        "2 eps from every counted fruit) adds to its plant's estimate, rounded per plant. 0: the paper's count, clusters "
+        "only. A sparse scan sees many real fruit once, a dense one sees a real fruit again: fit it per scan "
+        "(benchmarks/intervals.py).")
+    cluster_method: Literal["dbscan", "xi"] = Field("dbscan", description="OPTICS cluster extraction (scikit-learn).")
+    xi: Real(0.0, 1.0, low_open=True, high_open=True) = Field(0.05, description="Steepness for cluster_method 'xi'.")
+    lof_neighbors: Count(2, 1000) = Field(
+        4, description="LocalOutlierFactor n_neighbors when use_layout is false; keep it below the fewest views of a fruit."
+    )
+    harvest_min_ripe: Count(1, 1000) = Field(1, description="Ripe fruit a plant must be expected to bear to be brought to the workstation.")
+    interval: IntervalConfig = Field(IntervalConfig(), description="The interval of each plant's, row's and the total ripe count.")
