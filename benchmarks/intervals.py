@@ -11,7 +11,14 @@ once; a set of parameters then costs only the exact distributions. A plant is co
 --calib RUN... fits weak_real, hidden and hidden_per_lone by grid search on those runs: of the parameters whose
 coverage reaches the level at every thinning, those of the smallest mean width (ties: the largest mean log
 probability of the true counts). --held RUN... then reports the coverage of the fitted parameters (without
---calib: the config's, or --set's) on runs the fit never saw. hidden_unseen is not fitted: runs have no voxel map.
+--calib: the config's, or --set's) on runs the fit never saw.
+
+hidden_unseen needs a voxel map, which only an adaptive run has: with --first-pass the runs are adaptive runs, each
+plant taken as the mission judged it at its row's first decision (the frames taken before that instant, and the
+unseen fraction of its canopy that mission.json recorded then), the interval's other parameters as the run's
+`counting.interval`, which the mission decides with; hidden_unseen is fitted alone, the smallest of HIDDEN_UNSEEN
+whose coverage reaches the level at every first-pass rate among the runs (the interval widens with it), and the
+table gives each value's coverage, mean width and the share of plants the mission would call settled, per rate.
 
 The estimate's credit for fruit seen once (`counting.lone_credit`) is fitted apart, for each thinning: the credit
 (0 to 1 by 0.05) of the least mean absolute ripe-yield error of the runs (ties: the most plants exact, then the
@@ -52,6 +59,7 @@ GRID = {
     "hidden_per_lone": (0.0, 0.02, 0.04, 0.05, 0.06, 0.075, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0),
 }
 CREDITS = tuple(round(0.05 * k, 2) for k in range(21))  # counting.lone_credit, 0 to 1
+HIDDEN_UNSEEN = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
 
 
 @dataclass(frozen=True)
@@ -95,6 +103,49 @@ def gather(run: Path, everies: list[int], interval: IntervalConfig) -> tuple[lis
         seconds[every] = time.process_time() - start
         cases += [Case(run.name, every, plants[plant_id], truth[plant_id]) for plant_id in sorted(plants)]
     return cases, seconds
+
+
+def first_pass(run: Path) -> list[Case]:
+    """An adaptive run's plants as its mission judged them at each row's first decision (module docstring); every
+    case's `every` is 1."""
+    config = files.read_config(run)
+    scene = files.read_scene(run)
+    times, poses = files.read_poses(run)
+    detections = files.read_detections(run, len(times))
+    mission = files.read_mission(run)
+    cameras = {index: pose[:3, 3] for index, pose in enumerate(poses)}
+    unseen = {plant.id: plant.first_pass.unseen for plant in mission.plants}
+    decided = {update.row: update.time for update in mission.harvest if update.round == 0}
+    cases = []
+    for row, instant in sorted(decided.items()):
+        frames = [frame for frame in detections.frames if frame.timestamp <= instant + 1e-9]
+        plants = evidence(scene, frames, cameras, config.counting, config.seed, unseen)
+        cases += [Case(str(run), 1, plants[plant.id], sum(p.ripe for p in scene.peppers_of(plant.id)))
+                  for plant in scene.plants if plant.row == row]
+    return cases
+
+
+def fit_unseen(groups: dict[float, list[Case]], interval: IntervalConfig,
+               lone_credit: dict[str, float]) -> tuple[float, list[dict]]:
+    """The smallest hidden_unseen of HIDDEN_UNSEEN whose coverage reaches the level in every group (first-pass rate:
+    cases), the largest where none does; and per value and group the coverage, mean width and share of plants
+    settled (low = high = the estimate with its run's lone credit, `lone_credit`: run name -> credit)."""
+    rows = []
+    for value in HIDDEN_UNSEEN:
+        trial = interval.model_copy(update={"hidden_unseen": value})
+        for rate, cases in sorted(groups.items()):
+            covered, widths, settled = [], [], []
+            for case in cases:
+                low, high = central_interval(plant_pmf(case.plant, trial), trial.level)
+                covered.append(low <= case.truth <= high)
+                widths.append(high - low)
+                settled.append(low == high == credited(case.plant, lone_credit[case.run]))
+            rows.append({"hidden_unseen": value, "first_pass_rate_hz": rate, "plants": len(cases),
+                         "coverage": float(np.mean(covered)), "mean_width": float(np.mean(widths)),
+                         "settled": float(np.mean(settled))})
+    reached = [value for value in HIDDEN_UNSEEN
+               if all(row["coverage"] >= interval.level - 1e-12 for row in rows if row["hidden_unseen"] == value)]
+    return (reached[0] if reached else HIDDEN_UNSEEN[-1]), rows
 
 
 def _shape(plant: PlantEvidence, interval: IntervalConfig) -> tuple:
@@ -196,6 +247,38 @@ def print_credit(title: str, fitted: dict[int, dict]) -> None:
               f"{part['error_pct_without']:>10.1f}% {part['exact_without']:>11.1%}")
 
 
+def main_first_pass(args: argparse.Namespace) -> None:
+    report: dict = {}
+    for name, paths in (("calib", args.calib), ("held", args.held)):
+        if not paths:
+            continue
+        runs = run_dirs(paths)
+        configs = [files.read_config(run) for run in runs]
+        if len({config.counting.interval for config in configs}) != 1:
+            raise SystemExit(f"{name}: the runs' missions decide with different counting.interval")
+        interval, credit = configs[0].counting.interval, {str(run): config.counting.lone_credit for run, config in zip(runs, configs)}
+        groups: dict[float, list[Case]] = {}
+        for run, config in zip(runs, configs):
+            groups.setdefault(config.mission.adaptive.first_pass_rate_hz, []).extend(first_pass(run))
+        cases = [case for group in groups.values() for case in group]
+        recorded = {(str(run), plant.id): (plant.first_pass.low, plant.first_pass.high)
+                    for run in runs for plant in files.read_mission(run).plants}
+        agree = sum(recorded[case.run, case.plant.id] == central_interval(plant_pmf(case.plant, interval), interval.level)
+                    for case in cases)
+        print(f"\n{name}: {len(cases)} plants of {len(runs)} adaptive runs at their first decision; the recomputed "
+              f"interval is mission.json's for {agree}")
+        value, rows = fit_unseen(groups, interval, credit)
+        print(f"{'hidden_unseen':>14} {'first pass Hz':>14} {'plants':>7} {'coverage':>9} {'mean width':>11} {'settled':>8}")
+        for row in rows:
+            print(f"{row['hidden_unseen']:>14g} {row['first_pass_rate_hz']:>14g} {row['plants']:>7} {row['coverage']:>9.1%} "
+                  f"{row['mean_width']:>11.2f} {row['settled']:>8.1%}")
+        if name == "calib":
+            print(f"fitted: hidden_unseen = {value:g} (level {interval.level:.0%} at every first-pass rate)")
+        report[name] = {"runs": [str(run) for run in runs], "rows": rows, "fitted": value if name == "calib" else None}
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=1) + "\n")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--calib", type=Path, nargs="*", default=[], help="runs (or eval folders) to fit on")
@@ -203,10 +286,15 @@ def main() -> None:
     parser.add_argument("--every", type=int, nargs="+", default=[1, 2, 4, 8, 16], help="thinnings of each scan")
     parser.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE", help="counting.interval fields")
     parser.add_argument("--lone-credit", type=float, default=0.0, help="counting.lone_credit of the tables' estimates")
+    parser.add_argument("--first-pass", action="store_true",
+                        help="adaptive runs at their first decisions: fit hidden_unseen alone (module docstring)")
     parser.add_argument("--json", type=Path, help="write the figures here too")
     args = parser.parse_args()
     if not args.calib and not args.held:
         parser.error("give --calib runs to fit on, --held runs to check on, or both")
+    if args.first_pass:
+        main_first_pass(args)
+        return
     base = IntervalConfig.model_validate({**IntervalConfig().model_dump(),
                                           **{k: float(v) if "." in v else int(v) for k, v in (s.split("=", 1) for s in args.set)}})
     report: dict = {"every": args.every, "start": base.model_dump()}

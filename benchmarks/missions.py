@@ -98,8 +98,8 @@ def main() -> None:
             adaptive = [p for p in points if p["mission"] == "adaptive"]
             axis.plot([p["frames"] for p in adaptive], [p[key] for p in adaptive], "D", color="#e67e22", markersize=8,
                       label="adaptive mission (first pass at)")
-            for p in adaptive:
-                axis.annotate(f"{p['rate_hz']:.2g} Hz", (p["frames"], p[key]), textcoords="offset points", xytext=(4, -12),
+            for i, p in enumerate(adaptive):  # labels alternate below and above, so that near points keep theirs apart
+                axis.annotate(f"{p['rate_hz']:.2g} Hz", (p["frames"], p[key]), textcoords="offset points", xytext=(4, -12 if i % 2 == 0 else 7),
                               fontsize=8, color="#e67e22")
             axis.set_xlabel("frames rendered a seed")
             axis.set_ylabel(label)

@@ -20,8 +20,10 @@ from renderloop.rundir import files, names
 from renderloop.rundir.ownership import BOOKKEEPING
 
 # Two plants on the demo table, raster frames, a first pass every 4 s and one round of two views: a mission in seconds
-# (and a static scan at 0.5 Hz beside it).
+# (and a static scan at 0.5 Hz beside it). A cautious prior on the unseen canopy keeps every plant open after the first
+# pass, so that the mission looks again.
 SMALL = {"renderer": {"backend": "raster"}, "greenhouse": {"plants_per_table": 2}, "camera": {"rate_hz": 0.5},
+         "counting": {"interval": {"hidden_unseen": 4.0}},
          "mission": {"kind": "adaptive", "adaptive": {"first_pass_rate_hz": 0.25, "views_per_round": 2, "rounds": 1}}}
 
 
@@ -132,6 +134,31 @@ def test_a_refused_re_scan_path_drops_its_last_view_and_flies_the_rest(tmp_path:
     flown = [view for plant in mission.plants for round_ in plant.rounds for view in round_.views]
     assert flown and mission.frames == mission.first_pass_frames + len(flown)
     assert all(plant.fallback is None for plant in mission.plants if plant.rounds)
+
+
+def test_a_re_scan_path_that_clashes_on_the_way_to_a_view_drops_that_view_and_flies_the_others(
+        adaptive_run: Path, tmp_path: Path, monkeypatch):
+    from renderloop.planning.check import Clash
+
+    replan, refusals = Simulation.replan, []
+
+    def clash_at_the_first_view(self, waypoints, check=False):
+        if check and not refusals:
+            refusals.append(len(waypoints))
+            raise Clash("the trajectory comes within 3 cm of plant_1", self.t, waypoint=0)
+        return replan(self, waypoints, check)
+
+    def views(run_dir: Path) -> list[tuple]:
+        return sorted(((view.time, plant.id, view.azimuth, view.height, view.distance) for plant in files.read_mission(run_dir).plants
+                       for round_ in plant.rounds for view in round_.views))
+
+    monkeypatch.setattr(Simulation, "replan", clash_at_the_first_view)
+    run_dir = tmp_path / "clash"
+    run_pipeline(run_dir, _config())
+    assert refusals
+    unrefused = views(adaptive_run)
+    assert len(unrefused) >= 2
+    assert sorted(view[1:] for view in views(run_dir)) == sorted(view[1:] for view in unrefused[1:])  # the first flown view dropped
 
 
 def test_the_report_shows_what_the_mission_decided(adaptive_run: Path, tmp_path: Path, monkeypatch, capsys):

@@ -227,12 +227,14 @@ def test_an_unseen_fraction_widens_the_interval_upward(scene, all_round):
     def unseen(fractions: dict[int, float]) -> dict[int, PlantEvidence]:
         return {i: replace(e, unseen=fractions.get(i)) for i, e in all_round.items()}
 
-    found = from_evidence(scene, unseen({plant.id: 0.5, scene.plants[2].id: 0.0}), FAST.interval)
+    interval = FAST.interval.model_copy(update={"hidden_unseen": 4.0})  # a crop whose unseen canopy hides fruit
+    found = from_evidence(scene, unseen({plant.id: 0.5, scene.plants[2].id: 0.0}), interval)
     half = found.plants[plant.id]
     assert half.unseen == 0.5 and half.low == half.estimate == truth < half.high
     assert found.plants[scene.plants[2].id].settled and found.plants[scene.plants[0].id].unseen is None
-    whole = from_evidence(scene, unseen({plant.id: 1.0}), FAST.interval).plants[plant.id]
+    whole = from_evidence(scene, unseen({plant.id: 1.0}), interval).plants[plant.id]
     assert whole.high > half.high
+    assert from_evidence(scene, unseen({plant.id: 1.0}), FAST.interval).plants[plant.id].settled  # the demo's fit: 0
 
 
 def test_unseen_fractions_outside_zero_to_one_or_of_no_plant_are_refused(scene):

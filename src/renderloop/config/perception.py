@@ -43,9 +43,8 @@ class DetectorConfig(Strict):
 class IntervalConfig(Strict):
     """The interval of each plant's ripe count (renderloop.counting.uncertainty): every counted cluster is a real
     fruit (weak ones with probability `weak_real`), plus hidden fruit ~ Poisson(hidden + hidden_per_lone x lone
-    detections + hidden_unseen x unseen fraction), mixed over redraws of the random fixed set. weak_real, hidden and
-    hidden_per_lone are fitted by benchmarks/intervals.py on demo runs; the greenhouse preset has its own fit
-    (docs/stages/counting.md)."""
+    detections + hidden_unseen x unseen fraction), mixed over redraws of the random fixed set. All four are fitted by
+    benchmarks/intervals.py on demo runs; the greenhouse preset has its own fit (docs/stages/counting.md)."""
 
     level: Real(0.5, 0.999) = Field(0.9, description="Probability the interval holds the true count (its central quantiles).")
     redraws: Count(1, 64) = Field(
@@ -64,8 +63,9 @@ class IntervalConfig(Strict):
         0.3, description="Expected hidden ripe fruit added by each lone detection of the plant: one in no cluster and "
         "farther than 2 eps from every counted fruit, a fruit seen once.")
     hidden_unseen: Real(0.0, 1000.0) = Field(
-        4.0, description="Expected hidden ripe fruit of a plant whose canopy box no depth frame has seen, scaled by the "
-        "unseen fraction; a prior (about the ripe fruit a demo or paper plant bears), not fitted.")
+        0.0, description="Expected hidden ripe fruit of a plant whose canopy box no depth frame has seen, scaled by the "
+        "unseen fraction (from an adaptive mission's voxel maps; a batch count has none). Fitted on the mission's first "
+        "decisions (benchmarks/intervals.py --first-pass): on the demo the unseen canopy hid no fruit.")
 
 
 class CountingConfig(Strict):

@@ -37,6 +37,7 @@ from renderloop.loop.sensors import Camera, Frame
 from renderloop.loop.simulation import Simulation
 from renderloop.loop.viewpoints import Projector, view_at
 from renderloop.loop.voxels import VoxelMap
+from renderloop.planning.check import Clash
 from renderloop.planning.transit import TransitPlanner
 from renderloop.planning.waypoints import Waypoint, footprint_radius, transit
 from renderloop.render.camera import Intrinsics
@@ -189,22 +190,22 @@ class AdaptiveMission:
 
     def _fly(self, decision: _Decision, plan: list[tuple[Plant, list, str]], state: dict[int, Estimate]) -> None:
         """Replan through the chosen views, rejoining the scan where it goes on after this row. Each view was checked
-        clear, but the trajectory through them may bend too near a plant: then the last view is dropped and the rest
-        tried again, and a plant left with none falls back to its first pass."""
+        clear, but the trajectory through them may bend too near a plant: then the view it was heading for is dropped
+        (the last view, when past them all) and the rest tried again, and a plant left with none falls back to its
+        first pass."""
         rejoin = next((i for i in range(self.row_end[decision.row] + 1, len(self.static))
                        if self.static[i].kind in ("scan", "end")), len(self.static) - 1)
         rest = self.static[rejoin:]
         plan = [(plant, list(chosen), why) for plant, chosen, why in plan]
         while True:
+            marks: list[tuple] = []
             try:
                 path, marks = self._path(plan, self.static[rejoin])
                 times = self.sim.replan(np.array([w.dofs for w in path + rest]), check=True)
                 break
             except UserError as problem:
                 refused = f"the re-scan path was refused: {problem}"
-                left = [chosen for _, chosen, _ in plan if chosen]
-                if left:
-                    left[-1].pop()
+                _drop_view(plan, marks, problem.waypoint if isinstance(problem, Clash) else None)
                 for plant, chosen, _ in plan:
                     if not chosen and decision.round == 0:
                         self.logs[plant.id].fallback = refused
@@ -282,3 +283,16 @@ def _estimate(plant: PlantUncertainty) -> Estimate:
     return Estimate(estimate=plant.estimate, low=plant.low, high=plant.high, weak=len(plant.weak_centers),
                     seen_once=len(plant.lone_points),
                     unseen=None if plant.unseen is None else round(float(plant.unseen), 6))
+
+
+def _drop_view(plan: list[tuple[Plant, list, str]], marks: list[tuple], heading: int | None) -> None:
+    """Drop the view a refused path was heading for when it clashed (`heading`: that waypoint's index in the path,
+    `marks`: each view's), or the last view when the clash came after them all or the path was not made."""
+    ahead = [mark for mark in marks if heading is not None and mark[0] >= heading]
+    if ahead:
+        _, owner, dropped = ahead[0]
+        for plant, chosen, _ in plan:
+            if plant is owner:
+                chosen[:] = [view for view in chosen if view is not dropped]
+    else:
+        [chosen for _, chosen, _ in plan if chosen][-1].pop()

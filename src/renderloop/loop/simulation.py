@@ -27,7 +27,7 @@ from renderloop.config import Config
 from renderloop.errors import UserError
 from renderloop.loop.reference import ReferencePlan
 from renderloop.loop.sensors import Camera
-from renderloop.planning.check import check_trajectory
+from renderloop.planning.check import Clash, check_trajectory
 from renderloop.planning.trajectory import Trajectory
 from renderloop.robot.kinematics import homogeneous
 from renderloop.rundir import files, names
@@ -90,12 +90,16 @@ class Simulation:
         """From now on fly through `waypoints` (rows of q* = x, y, z, yaw, q1, q2, q3) instead of the rest of the plan,
         joined to the current reference without a jump; returns when the new plan passes each waypoint (simulation
         seconds; the last is when it ends). With `check`, the new motion must keep the planner's clearance from the
-        greenhouse and stay inside it, or the plan is left as it was and a UserError says where it would hit."""
+        greenhouse and stay inside it, or the plan is left as it was and a `Clash` says where it would hit and which
+        waypoint the motion was heading for then."""
         plan = self._require_plan()
         trial = copy.deepcopy(plan) if check else plan
         times = trial.replan(self.tick, waypoints, self.config.planner, self.hold)
         if check:
-            check_trajectory(self.model, trial.t[self.tick:], trial.q[self.tick:], tuple(self.scene.room))
+            try:
+                check_trajectory(self.model, trial.t[self.tick:], trial.q[self.tick:], tuple(self.scene.room))
+            except Clash as clash:
+                raise Clash(str(clash), clash.t, int(np.searchsorted(times, clash.t - 1e-9))) from None
             self.plan = trial
         return times
 

@@ -18,12 +18,22 @@ CLEARANCE = 0.03  # m
 CHECK_PERIOD = 0.1  # s between checked samples
 
 
+class Clash(UserError):
+    """A trajectory that would leave the greenhouse or come within CLEARANCE of it, first at `t` (s); `waypoint`,
+    where the caller knows it: the index of the first waypoint the trajectory passes at or after `t`."""
+
+    def __init__(self, message: str, t: float, waypoint: int | None = None) -> None:
+        super().__init__(message)
+        self.t, self.waypoint = t, waypoint
+
+
 def check_trajectory(model: mujoco.MjModel, t: np.ndarray, q: np.ndarray, room: tuple[float, float, float]) -> None:
     length, width, height = room
     outside = (np.abs(q[:, 0]) > length / 2) | (np.abs(q[:, 1]) > width / 2) | (q[:, 2] < 0.0) | (q[:, 2] > height)
     if outside.any():
         k = int(np.argmax(outside))
-        raise UserError(f"planner: the trajectory leaves the greenhouse at t={t[k]:.2f} s, position {np.round(q[k, :3], 2).tolist()}")
+        raise Clash(f"planner: the trajectory leaves the greenhouse at t={t[k]:.2f} s, position {np.round(q[k, :3], 2).tolist()}",
+                    float(t[k]))
     data = mujoco.MjData(model)
     uav = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "uav")
     robot_geom = model.geom_bodyid >= uav
@@ -43,6 +53,6 @@ def check_trajectory(model: mujoco.MjModel, t: np.ndarray, q: np.ndarray, room: 
             if hits.any():
                 a, b = geoms[int(np.argmax(hits))]
                 name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, b if robot_geom[a] else a)
-                raise UserError(f"planner: the trajectory comes within {CLEARANCE * 100:.0f} cm of {name} at t={t[k]:.2f} s")
+                raise Clash(f"planner: the trajectory comes within {CLEARANCE * 100:.0f} cm of {name} at t={t[k]:.2f} s", float(t[k]))
     finally:
         model.geom_margin[:] = saved_margin
