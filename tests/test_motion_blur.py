@@ -200,7 +200,7 @@ def test_a_record_from_before_motion_blur_stands_where_blur_would_not_have_chang
     from renderloop.rundir.models import RenderRecord
 
     camera = _tiny_config().camera.model_copy(update={"sensor": SensorConfig(enabled=enabled)}).model_dump(mode="json")
-    today = RenderRecord(backend=backend, frames=3, poses_sha256="p", scene_sha256="s", seed=1, camera=camera, renderer={"bounces": {}})
+    today = RenderRecord(backend=backend, frames=3, poses_sha256="p", scene_sha256="s", seed=1, camera=camera, renderer={"bounces": {}, "raster": {}})
     before = {**camera, "sensor": {key: value for key, value in camera["sensor"].items() if key != "exposure_time"}}
     files.write_model(tmp_path / names.RENDER_RECORD, today.model_copy(update={"camera": before}))
     assert (_recorded(tmp_path) == today) is same
