@@ -66,7 +66,7 @@ HIDDEN_UNSEEN = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
 class Case:
     """One plant of one run, its scan thinned to every `every`-th frame."""
 
-    run: str
+    run: str  # the run directory's path
     every: int
     plant: PlantEvidence
     truth: int  # ripe fruit of the plant in scene.json
@@ -101,7 +101,7 @@ def gather(run: Path, everies: list[int], interval: IntervalConfig) -> tuple[lis
         start = time.process_time()
         plants = evidence(scene, frames, cameras, counting, config.seed)
         seconds[every] = time.process_time() - start
-        cases += [Case(run.name, every, plants[plant_id], truth[plant_id]) for plant_id in sorted(plants)]
+        cases += [Case(str(run), every, plants[plant_id], truth[plant_id]) for plant_id in sorted(plants)]
     return cases, seconds
 
 
@@ -129,7 +129,7 @@ def fit_unseen(groups: dict[float, list[Case]], interval: IntervalConfig,
                lone_credit: dict[str, float]) -> tuple[float, list[dict]]:
     """The smallest hidden_unseen of HIDDEN_UNSEEN whose coverage reaches the level in every group (first-pass rate:
     cases), the largest where none does; and per value and group the coverage, mean width and share of plants
-    settled (low = high = the estimate with its run's lone credit, `lone_credit`: run name -> credit)."""
+    settled (low = high = the estimate with its run's lone credit, `lone_credit`: run path -> credit)."""
     rows = []
     for value in HIDDEN_UNSEEN:
         trial = interval.model_copy(update={"hidden_unseen": value})
