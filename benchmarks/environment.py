@@ -2,7 +2,7 @@
 
 The demo preset (seed 0, 4 plants, 'simple' style, 320x240, the config's default quality: 1 sample,
 fast denoise) with `greenhouse.environment.kind` plain and film, and the greenhouse preset (film,
-'pepper' style, tall plants): the time `generate_scene` takes, the Cycles renderer's build, its first
+its tall 'highwire' plants): the time `generate_scene` takes, the Cycles renderer's build, its first
 frame (which also syncs the scene) and then frames from scan-like poses, and the raster backend's
 build and frames beside them; the greenhouse preset with the plain environment too, to tell the tall
 plants' cost from the environment's. Medians with min and max of wall seconds and of the process's CPU
