@@ -288,11 +288,9 @@ def _estimate(plant: PlantUncertainty) -> Estimate:
 def _drop_view(plan: list[tuple[Plant, list, str]], marks: list[tuple], heading: int | None) -> None:
     """Drop the view a refused path was heading for when it clashed (`heading`: that waypoint's index in the path,
     `marks`: each view's), or the last view when the clash came after them all or the path was not made."""
-    ahead = [mark for mark in marks if heading is not None and mark[0] >= heading]
+    ahead = [view for index, _, view in marks if heading is not None and index >= heading]
     if ahead:
-        _, owner, dropped = ahead[0]
-        for plant, chosen, _ in plan:
-            if plant is owner:
-                chosen[:] = [view for view in chosen if view is not dropped]
+        for _, chosen, _ in plan:
+            chosen[:] = [view for view in chosen if view is not ahead[0]]
     else:
         [chosen for _, chosen, _ in plan if chosen][-1].pop()
