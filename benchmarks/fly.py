@@ -3,7 +3,7 @@
 Measured side by side in one run on the paper preset: MuJoCo stepping the world with
 the rotors at hover (physics alone); the whole closed loop (cascade PID at 100 Hz,
 logging included) over the first --seconds of the scan; one control tick split into
-its controller (Flight.tick with mj_step and mj_forward made no-ops, at states met
+its controller (Flight.tick with its physics steps made no-ops, at states met
 along that flight) and its physics (the same states, stepped); and the whole
 `renderloop fly` process on the whole scan (interpreter start, imports, flight,
 flight.csv, groundtruth.txt and plots), the figure issue 23 asks to be at least 100x.
@@ -68,9 +68,10 @@ def _skip(*args, **kwargs) -> None:
 
 @contextlib.contextmanager
 def no_physics() -> Iterator[None]:
-    """`mujoco` as renderloop.sim.flight sees it, but with mj_step and mj_forward doing nothing: Flight.tick is then
+    """`mujoco` as renderloop.sim.flight sees it, but with the physics steps doing nothing: Flight.tick is then
     the controller alone (mju_quat2Mat and mj_fullM, which it calls for its inputs, included)."""
-    flight_module.mujoco = types.SimpleNamespace(**{**vars(mujoco), "mj_step": _skip, "mj_forward": _skip})
+    skipped = {name: _skip for name in ("mj_step", "mj_step1", "mj_step2", "mj_forward")}
+    flight_module.mujoco = types.SimpleNamespace(**{**vars(mujoco), **skipped})
     try:
         yield
     finally:
@@ -92,7 +93,7 @@ def flight_states(model: mujoco.MjModel, config: Config, reference: Reference) -
 
 
 def tick_split(model: mujoco.MjModel, config: Config, reference: Reference, states: list) -> tuple[float, float]:
-    """Microseconds per control tick: the controller alone, and the physics (the substeps and mj_forward)."""
+    """Microseconds per control tick: the controller alone, and the physics (the substeps, split as Flight.tick splits them)."""
     ticks = resample(reference, config.controller.rate_hz, 0.0)
     flight = Flight(model, config, config.seed)
     flight.reset(ticks.q[0])
@@ -109,8 +110,9 @@ def tick_split(model: mujoco.MjModel, config: Config, reference: Reference, stat
             controller += time.perf_counter() - start
         start = time.perf_counter()
         for _ in range(TICKS_PER_STATE):  # with the controls that tick left
-            mujoco.mj_step(model, data, nstep=substeps)
-            mujoco.mj_forward(model, data)
+            mujoco.mj_step2(model, data)
+            mujoco.mj_step(model, data, nstep=substeps - 1)
+            mujoco.mj_step1(model, data)
         physics += time.perf_counter() - start
     count = len(states) * TICKS_PER_STATE
     return controller / count * 1e6, physics / count * 1e6

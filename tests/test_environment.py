@@ -23,9 +23,10 @@ from renderloop.scene.objects import collision_objects, greenhouse_objects
 from renderloop.scene.stage import run_scene
 from renderloop.scene.world import world_xml
 
-# sha256 of the demo world (seed 0) written by the code before the environment existed (2026-11-23); its scene.json
-# is pinned by tests/test_pepper_style.py.
-PLAIN_WORLD_SHA256 = "5cf5239e5a7892995019599ee9b0d91cd8f7de4e4e717a6bfbd082fdd5acfaf5"
+# sha256 of the demo world (seed 0): the geoms the code before the environment existed wrote (2026-11-23), with the
+# floor and each wall in a static body of its own since 2026-11-26 (the only difference, checked by diff); its
+# scene.json is pinned by tests/test_pepper_style.py.
+PLAIN_WORLD_SHA256 = "91fdbe99c87c598b1a7f81c66409d4aca90b7e1a293978909a1699c644c6c358"
 LEAN = {"plants": {"pepper_style": {"leaves": [30, 40]}}}  # the greenhouse preset with few leaves: seconds, not minutes
 
 

@@ -33,7 +33,7 @@ from renderloop.robot.kinematics import homogeneous
 from renderloop.rundir import files, names
 from renderloop.scene.model import Scene
 from renderloop.scene.stage import run_scene
-from renderloop.sim.flight import Flight, FlightLog, Reference, Snapshot
+from renderloop.sim.flight import Flight, FlightLog, FlightRecorder, Reference
 
 HOLD = 1.0  # s the robot hovers at the end of its plan, as `renderloop fly` does
 
@@ -61,9 +61,7 @@ class Simulation:
         self.plan: ReferencePlan | None = None
         self.tick = 0
         self.sensors: list[Camera] = []
-        self._snapshots: list[Snapshot] = []
-        self._speeds: list[np.ndarray] = []
-        self._saturated: list[bool] = []
+        self._recorder = FlightRecorder(self.flight)
 
     # What it flies ---------------------------------------------------------------------------------------------------
 
@@ -82,7 +80,7 @@ class Simulation:
         self.plan = ReferencePlan.of(reference, self.rate_hz, self.hold)
         self.flight.reset(self.plan.q[0])
         self.tick = 0
-        self._snapshots, self._speeds, self._saturated = [], [], []
+        self._recorder = FlightRecorder(self.flight)
         for sensor in self.sensors:
             sensor.restart()
 
@@ -128,15 +126,13 @@ class Simulation:
     def step(self) -> None:
         """One control period: sensors due at this instant fire, then the controller flies toward the reference."""
         plan = self._require_plan()
-        snapshot = self.flight.snapshot()
+        snapshot = self._recorder.snapshot(self._recorder.state())
         now = self.t
         for sensor in self.sensors:
             sensor.observe(now, snapshot, plan.end)
         q, qd, qdd = plan.at(self.tick)
         self.flight.tick(q, qd, qdd)
-        self._snapshots.append(snapshot)
-        self._speeds.append(self.flight.speeds.copy())
-        self._saturated.append(bool(self.flight.uav.saturated))
+        self._recorder.controls()
         self.tick += 1
 
     def run_until(self, t: float) -> None:
@@ -165,7 +161,7 @@ class Simulation:
     def log(self) -> FlightLog:
         """Everything flown so far, as `renderloop fly` logs it."""
         plan = self._require_plan()
-        return FlightLog.of(plan.t[: self.tick], plan.q[: self.tick], self._snapshots, self._speeds, self._saturated)
+        return self._recorder.log(plan.t[: self.tick], plan.q[: self.tick])
 
     # Sensors ----------------------------------------------------------------------------------------------------------
 

@@ -15,9 +15,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import toppra
-import toppra.algorithm
-import toppra.constraint
 
 from renderloop.config import PlannerConfig
 from renderloop.errors import UserError
@@ -69,6 +66,11 @@ def _times_at(gridpoints: np.ndarray, path_velocity: np.ndarray) -> np.ndarray:
 def time_parameterize(waypoints: np.ndarray, planner: PlannerConfig, start_velocity: np.ndarray | None = None) -> Trajectory:
     """The fastest trajectory through `waypoints` within the limits, from rest or, for a replan mid-flight, leaving
     the first waypoint with `start_velocity` (q̇*: the path starts along it at its speed); it always ends at rest."""
+    # Imported here: toppra imports matplotlib.pyplot (0.4 s), which commands that only read a trajectory never need.
+    import toppra
+    import toppra.algorithm
+    import toppra.constraint
+
     dofs = np.array(waypoints, dtype=float)
     dofs[:, 3] = np.unwrap(dofs[:, 3])
     ss = path_parameter(dofs)

@@ -1,9 +1,12 @@
 """The closed loop in MuJoCo: cascade PID on the UAV, joint PIDs on the arm, rotors through the rotor model.
 
-Each control tick (100 Hz by default) runs mj_forward once, so that the pose the
-controller reads, the camera pose logged and the model terms used for
-compensation all belong to the same instant, then steps the physics several
-2 ms steps with the controls held (a zero-order hold, as on a flight controller).
+Each control tick (100 Hz by default) reads the state at its instant (the pose the
+controller reads, the camera pose logged and the model terms used for compensation
+all belong to it), then steps the physics several 2 ms steps with the controls held
+(a zero-order hold, as on a flight controller). The state is MuJoCo's split step:
+mj_step1 (positions, velocities, collisions) ends a tick, and the next tick's
+controls enter before its mj_step2 (actuation, acceleration, integration), so no
+part of a step is computed twice.
 """
 
 from __future__ import annotations
@@ -59,18 +62,6 @@ class FlightLog:
     camera_rotation: np.ndarray  # (N, 3, 3)
     contacts: np.ndarray
     saturated: np.ndarray
-
-    @classmethod
-    def of(cls, t: np.ndarray, reference: np.ndarray, snapshots: list[Snapshot], rotor_speeds: list[np.ndarray],
-           saturated: list[bool]) -> FlightLog:
-        """The log of ticks flown: the state at each tick, and the rotor speeds and saturation its controls gave."""
-        count = len(snapshots)
-        stack = lambda name, shape: np.array([getattr(s, name) for s in snapshots]).reshape(count, *shape)  # noqa: E731
-        return cls(t=np.asarray(t), position=stack("position", (3,)), quaternion=stack("quaternion", (4,)),
-                   joints=stack("joints", (3,)), rotor_speeds=np.array(rotor_speeds).reshape(count, 4),
-                   reference=np.asarray(reference), camera_position=stack("camera_position", (3,)),
-                   camera_rotation=stack("camera_rotation", (3, 3)), contacts=np.array([s.contacts for s in snapshots], dtype=int),
-                   saturated=np.array(saturated, dtype=bool))
 
 
 def flight_table(log: FlightLog, planned_camera: np.ndarray) -> np.ndarray:
@@ -161,13 +152,65 @@ class Flight:
             self.rotors.K_inv, self._top_w2, self._lag_alpha, self.speeds, self._qpos, self._qvel, self.joint_qpos,
             self.full_mass, self._bias, self._rotation, self._noise, q, qd, qdd, self._ctrl,
         )
-        mujoco.mj_step(model, data, nstep=self.substeps)
-        mujoco.mj_forward(model, data)
+        mujoco.mj_step2(model, data)
+        if self.substeps > 1:
+            mujoco.mj_step(model, data, nstep=self.substeps - 1)
+        mujoco.mj_step1(model, data)
 
     def body_rotation(self) -> np.ndarray:
         matrix = np.empty(9)
         mujoco.mju_quat2Mat(matrix, self.data.qpos[3:7])
         return matrix.reshape(3, 3)
+
+
+class FlightRecorder:
+    """The flight log, filled in place tick by tick: the state at each tick's instant, then the rotor speeds and
+    saturation its controls gave. Rows grow by doubling, so a flight of unknown length (the Simulation API) records
+    as cheaply as a planned one; a Snapshot object and its copies each tick cost a tenth of the tick."""
+
+    def __init__(self, flight: Flight, capacity: int = 1024):
+        self.flight, self.count = flight, 0
+        self.pose = np.zeros((capacity, 10))  # x y z, qx qy qz qw, q1 q2 q3
+        self.camera = np.zeros((capacity, 12))  # position, then the rotation's rows
+        self.contacts = np.zeros(capacity, dtype=int)
+        self.rotor_speeds = np.zeros((capacity, 4))
+        self.saturated = np.zeros(capacity, dtype=bool)
+        data = flight.data
+        self._columns = np.r_[0:3, XYZW, flight.joint_qpos]
+        self._qpos = data.qpos  # MjData's arrays are views of its buffers: fetched once, they stay current
+        self._camera_position, self._camera_rotation = data.site_xpos[flight.camera], data.site_xmat[flight.camera]
+
+    def state(self) -> int:
+        """Record the state at this tick's instant, before its controls act; returns its row."""
+        k = self.count
+        if k == len(self.contacts):
+            for name in ("pose", "camera", "contacts", "rotor_speeds", "saturated"):
+                array = getattr(self, name)
+                setattr(self, name, np.concatenate([array, np.zeros_like(array)]))
+        self.pose[k] = self._qpos[self._columns]
+        self.camera[k, :3] = self._camera_position
+        self.camera[k, 3:] = self._camera_rotation
+        self.contacts[k] = self.flight.contacts()
+        self.count = k + 1
+        return k
+
+    def snapshot(self, k: int) -> Snapshot:
+        pose, camera = self.pose[k], self.camera[k]
+        return Snapshot(pose[:3], pose[3:7], pose[7:], camera[:3], camera[3:].reshape(3, 3), int(self.contacts[k]))
+
+    def controls(self) -> None:
+        """Record the rotor speeds and saturation that the last recorded state's controls gave."""
+        self.rotor_speeds[self.count - 1] = self.flight.speeds
+        self.saturated[self.count - 1] = self.flight.uav.saturated
+
+    def log(self, t: np.ndarray, reference: np.ndarray) -> FlightLog:
+        """The ticks recorded, at times `t` with references `reference` (one row each)."""
+        n = self.count
+        pose, camera = self.pose[:n].copy(), self.camera[:n].copy()
+        return FlightLog(t=np.asarray(t), position=pose[:, :3], quaternion=pose[:, 3:7], joints=pose[:, 7:],
+                         rotor_speeds=self.rotor_speeds[:n].copy(), reference=np.asarray(reference), camera_position=camera[:, :3],
+                         camera_rotation=camera[:, 3:].reshape(n, 3, 3), contacts=self.contacts[:n].copy(),
+                         saturated=self.saturated[:n].copy())
 
 
 def resample(reference: Reference, rate_hz: float, hold: float) -> Reference:
@@ -184,11 +227,10 @@ def resample(reference: Reference, rate_hz: float, hold: float) -> Reference:
 def fly(model: mujoco.MjModel, config: Config, trajectory: Reference, hold: float = 1.0) -> FlightLog:
     flight = Flight(model, config, config.seed)
     reference = resample(trajectory, config.controller.rate_hz, hold)
-    snapshots, speeds, saturated = [], [], []
+    recorder = FlightRecorder(flight, len(reference.t))
     flight.reset(reference.q[0])
     for k in range(len(reference.t)):
-        snapshots.append(flight.snapshot())
+        recorder.state()
         flight.tick(reference.q[k], reference.qd[k], reference.qdd[k])
-        speeds.append(flight.speeds.copy())
-        saturated.append(bool(flight.uav.saturated))
-    return FlightLog.of(reference.t, reference.q, snapshots, speeds, saturated)
+        recorder.controls()
+    return recorder.log(reference.t, reference.q)
