@@ -51,11 +51,13 @@ def closed_loop(run_dir: Path, config: Config, seconds: float, camera: bool, wor
             sim.step()
             while cam is not None and taken < len(cam) and cam.ready(taken):
                 perception.take(cam.frame(taken))
+                cam.release(taken)
                 taken += 1
         if cam is not None:
             before = time.perf_counter()
-            for frame in cam.frames_until(sim.t)[taken:]:  # the end of the run: the last frames are waited for
-                perception.take(frame)
+            while taken < len(cam):  # the end of the run: the last frames are waited for
+                perception.take(cam.frame(taken))
+                cam.release(taken)
                 taken += 1
             waited = time.perf_counter() - before
             perception.counter.counts()

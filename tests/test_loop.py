@@ -91,6 +91,27 @@ def test_bad_sensor_arguments_are_value_errors_with_the_clis_sentence(flown: Pat
     assert issubclass(UserError, ValueError)
 
 
+def test_a_raster_frame_reads_its_images_as_its_files_hold_them_and_a_released_frame_is_gone(flown: Path):
+    from renderloop.loop.sensors import Frame
+
+    config = files.read_config(flown)
+    with Simulation(config, flown) as sim:
+        sim.follow(sim.scan_trajectory())
+        camera = sim.add_camera(rate_hz=2.0, backend="raster")
+        sim.run_until(1.6)
+        frames = camera.frames_until(sim.t)
+        assert len(frames) == 4 and all(frame.images for frame in frames)
+        for frame in frames:  # the images this process kept are what the PNGs written from them decode to
+            from_files = Frame(frame.index, frame.timestamp, frame.pose, frame.files)
+            for image in ("rgb", "depth", "ideal_rgb", "ideal_depth", "mask"):
+                kept, decoded = getattr(frame, image), getattr(from_files, image)
+                assert kept.dtype == decoded.dtype and np.array_equal(kept, decoded), image
+        camera.release(1)
+        assert [frame.index for frame in camera.frames_until(sim.t)] == [0, 2, 3]
+        with pytest.raises(UserError, match="camera frame 1 was released"):
+            camera.frame(1)
+
+
 def _contract(run_dir: Path) -> dict[str, bytes]:
     """A run's files, less what says how it was run (its config, its seconds, its own bookkeeping)."""
     skip = {names.CONFIG, names.TIMINGS, *BOOKKEEPING}

@@ -103,7 +103,7 @@ from renderloop.loop.viewpoints import (
     action_to_view,
 )
 from renderloop.render.executor import FrameWorker
-from renderloop.render.frames import MAX_DEPTH
+from renderloop.render.frames import MAX_DEPTH, stored_images
 from renderloop.robot.kinematics import (
     dofs_to_camera_pose,
     homogeneous,
@@ -259,8 +259,7 @@ class PepperScanEnv(gymnasium.Env):
         position, rotation = as_stored(now[:3, 3], now[:3, :3])  # rounded as groundtruth.txt holds poses
         pose = homogeneous(rotation, position)
         index = len(self.perception.frames)
-        _, files, _ = self.camera.render_pose(index, pose)
-        self._frame = Frame(index, self.sim.t, pose, files)
+        self._frame = Frame(index, self.sim.t, pose, {}, stored_images(*self.camera.images(index, pose)))  # no files written
         self.perception.take(self._frame)
         fruit = [f for f in self.perception.counter.counts().fruit
                  if f.plant == self.plant.id and f.support >= self.config.counting.min_views]

@@ -18,8 +18,9 @@ from __future__ import annotations
 import io
 import math
 from bisect import bisect_left, insort
+from collections import deque
 from collections.abc import Callable
-from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
 from multiprocessing import get_context
@@ -38,7 +39,7 @@ from renderloop.render.executor import (
     spawnable_sys_path,
     threads_per_worker,
 )
-from renderloop.render.frames import decode_depth
+from renderloop.render.frames import decode_depth, encode_images, stored_images
 from renderloop.render.motion import FlownStates, exposure_poses, exposure_time, stored
 from renderloop.robot.kinematics import homogeneous
 from renderloop.rundir import names
@@ -59,32 +60,47 @@ class Frame:
     timestamp: float
     pose: np.ndarray
     files: dict[str, bytes] = field(repr=False)  # PNG bytes by stream: rgb, depth, masks (and depth_sensor)
+    images: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # the same, not encoded (frames of this process)
+
+    def _stored(self, stream: str) -> np.ndarray:
+        """A stream as its file holds it: the image itself when this process rendered it, else its PNG decoded."""
+        return self.images[stream] if stream in self.images else _decode(self.files[stream])
+
+    @property
+    def colour_stream(self) -> str:
+        """The colour the camera delivers: the sensor stream when the camera has one."""
+        return names.RGB_SENSOR if names.RGB_SENSOR in (self.images or self.files) else names.RGB
+
+    @property
+    def depth_stream(self) -> str:
+        return names.DEPTH_SENSOR if names.DEPTH_SENSOR in (self.images or self.files) else names.DEPTH
 
     @cached_property
     def rgb(self) -> np.ndarray:
         """Colour as the camera delivers it: the sensor stream when the camera has one."""
-        return _decode(self.files.get(names.RGB_SENSOR, self.files[names.RGB]))
+        return self._stored(self.colour_stream)
 
     @cached_property
     def depth(self) -> np.ndarray:
         """Planar depth, m (0 = no return): the sensor stream when the camera has one, as a real camera gives."""
-        return decode_depth(_decode(self.files.get(names.DEPTH_SENSOR, self.files[names.DEPTH])))
+        return decode_depth(self._stored(self.depth_stream))
 
     @cached_property
     def ideal_rgb(self) -> np.ndarray:
-        return _decode(self.files[names.RGB])
+        return self._stored(names.RGB)
 
     @cached_property
     def ideal_depth(self) -> np.ndarray:
-        return decode_depth(_decode(self.files[names.DEPTH]))
+        return decode_depth(self._stored(names.DEPTH))
 
     @cached_property
     def mask(self) -> np.ndarray:
         """Pepper instance ids (0 = not a pepper): the simulator's truth."""
-        return _decode(self.files[names.MASKS])
+        return self._stored(names.MASKS)
 
 
 _worker: FrameWorker | None = None
+MAX_ENCODING = 16  # raster frames waiting for their PNGs (3 MB each at 640x480) before the camera waits for the oldest
 
 
 def _start_worker(config: Config, scene: Scene, backend: str) -> None:
@@ -106,12 +122,15 @@ class _Renderers:
         if executor not in ("local", "ray"):
             raise UserError(f"unknown executor {executor!r} (choose from: local, ray)")
         self.pending: dict[int, Future | object] = {}
+        self.images: dict[int, dict[str, np.ndarray]] = {}  # the frames this process rendered, not encoded
         self._close: list[Callable[[], None]] = []
         if executor == "ray":
             self._start_ray(config, scene, backend, workers, address)
         elif backend == "raster" and workers <= 1:
             self.local = FrameWorker(config, scene, None, backend)
-            self._close.append(self.local.close)
+            # PNG compression, a third of a raster frame's time, runs on a thread of its own: zlib works without the GIL
+            self.encoder, self.encoding = ThreadPoolExecutor(1), deque()
+            self._close.extend((self.local.close, lambda: self.encoder.shutdown(cancel_futures=True)))
         else:
             config = threads_per_worker(config, workers)
             pool = ProcessPoolExecutor(max(1, workers), mp_context=get_context("spawn"), initializer=_start_worker,
@@ -132,7 +151,16 @@ class _Renderers:
 
     def submit(self, index: int, pose: np.ndarray, motion: np.ndarray | None = None) -> None:
         if hasattr(self, "local"):
-            self.pending[index] = self.local.render_pose(index, pose, motion)
+            frame, depth, rgb = self.local.images(index, pose, motion)
+            images = self.images[index] = stored_images(frame, depth, rgb)
+            for image in images.values():  # read by the encoder while the frame's consumers read them too
+                image.flags.writeable = False
+            while len(self.encoding) >= MAX_ENCODING:  # a bounded queue: frames held waiting cost 3 MB each
+                self.encoding.popleft().result()
+            self.pending[index] = job = self.encoder.submit(lambda: (index, encode_images(images), frame.timings))
+            self.encoding.append(job)
+            while self.encoding and self.encoding[0].done():
+                self.encoding.popleft()
         elif hasattr(self, "actors"):
             self.pending[index] = self.actors[index % len(self.actors)].render_pose.remote(index, pose, motion)
         else:
@@ -155,6 +183,10 @@ class _Renderers:
             job = self.ray.get(job)
         self.pending[index] = job
         return job[1]
+
+    def forget(self, index: int) -> None:
+        self.pending.pop(index, None)
+        self.images.pop(index, None)
 
     def close(self) -> None:
         while self._close:
@@ -182,11 +214,13 @@ class Camera:
         self._periodic = 0  # k of the next periodic instant k / rate_hz
         self._triggers: list[float] = []  # instants asked for, in order
         self._frames: dict[int, Frame] = {}
+        self._released: set[int] = set()
         self._flown_t: list[float] = []  # the flown state of every tick, for the motion during exposures
         self._flown: list[list[float]] = []
         self._exposing: dict[int, tuple[float, float]] = {}  # frames whose shutter is still open: (t, exposure)
         self.shutters: dict[int, np.ndarray] = {}  # a blurred frame's poses at its shutter's opening and closing
         self.renderers.pending.clear()
+        self.renderers.images.clear()
 
     def observe(self, now: float, snapshot: Snapshot, end: float) -> None:
         """Called at every control tick: ask for a frame when one of the camera's instants has come."""
@@ -246,12 +280,23 @@ class Camera:
                 raise UserError(f"camera frame {index}: only {len(self.timestamps)} frames were asked for")
             if index in self._exposing:
                 self._submit_exposed(index)
-            self._frames[index] = Frame(index, self.timestamps[index], self.poses[index], self.renderers.result(index))
+            if index in self._released:
+                raise UserError(f"camera frame {index} was released")
+            self._frames[index] = Frame(index, self.timestamps[index], self.poses[index], self.renderers.result(index),
+                                        self.renderers.images.get(index, {}))
         return self._frames[index]
 
+    def release(self, index: int) -> None:
+        """Forget frame `index`'s images once what was needed is taken from them: a 640x480 frame holds about 3 MB
+        (its files, and its images once read), so a paper scan at 5 Hz kept whole would hold 10 GB."""
+        self._frames.pop(index, None)
+        self.renderers.forget(index)
+        self._released.add(index)
+
     def frames_until(self, t: float) -> list[Frame]:
-        """Every frame taken at or before simulation time `t`, in order; waits only for those not rendered yet."""
-        return [self.frame(i) for i, stamp in enumerate(self.timestamps) if stamp <= t + 1e-9]
+        """Every frame taken at or before simulation time `t` and not released, in order; waits only for those not
+        rendered yet."""
+        return [self.frame(i) for i, stamp in enumerate(self.timestamps) if stamp <= t + 1e-9 and i not in self._released]
 
     def close(self) -> None:
         self.renderers.close()

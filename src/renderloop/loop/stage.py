@@ -41,9 +41,8 @@ class OnlinePerception:
 
     def take(self, frame) -> DetectionFrame:
         detections = find_fruit(self.detector, frame.rgb, frame.depth, frame.pose, self.settings, self.intrinsics)
-        stream = names.RGB_SENSOR if names.RGB_SENSOR in frame.files else names.RGB
         found = DetectionFrame(index=frame.index, timestamp=round(float(frame.timestamp), 6),
-                               image=names.frame_file(stream, frame.index), detections=detections)
+                               image=names.frame_file(frame.colour_stream, frame.index), detections=detections)
         self.frames.append(found)
         self.counter.add(found, frame.pose[:3, 3])
         return found
@@ -71,6 +70,7 @@ def _fly_in_loop(run_dir: Path, config: Config, job: Job) -> None:
                 perception.take(frame)
                 if mission is not None:
                     mission.take(frame)
+                camera.release(frame.index)
                 written += 1
                 if job.progress:
                     job.progress(written, max(len(camera), 1))

@@ -24,6 +24,7 @@ from renderloop.config import Config
 from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
 from renderloop.render.depth_noise import sensor_depth
+from renderloop.render.frame import RenderedFrame
 from renderloop.render.frames import encode_frame
 from renderloop.render.sensor import sensor_rgb
 from renderloop.scene.model import Scene
@@ -64,8 +65,15 @@ class FrameWorker:
 
     def render_pose(self, index: int, pose: np.ndarray,
                     motion: np.ndarray | None = None) -> tuple[int, dict[str, bytes], dict[str, float]]:
-        """Frame `index`, seen from `pose` (T_world_optical); `motion`: the poses at the shutter's opening and closing
-        (render/motion.py), which the colour sensor's frame is blurred between (Cycles only; None: a still camera)."""
+        """Frame `index`, seen from `pose` (T_world_optical), as its files' bytes; `motion`: the poses at the shutter's
+        opening and closing (render/motion.py), which the colour sensor's frame is blurred between (Cycles only;
+        None: a still camera)."""
+        frame, depth, rgb = self.images(index, pose, motion)
+        return index, encode_frame(frame, depth, rgb), frame.timings
+
+    def images(self, index: int, pose: np.ndarray,
+               motion: np.ndarray | None = None) -> tuple[RenderedFrame, np.ndarray | None, np.ndarray | None]:
+        """Frame `index` before encoding: the ideal frame, and the sensor's depth and colour where the config has them."""
         frame = self.renderer.render(pose)
         config, depth, rgb = self.config, None, None
         # each sensor seeded per frame, so a frame does not depend on which worker drew it
@@ -81,7 +89,7 @@ class FrameWorker:
             rng = np.random.default_rng(np.random.SeedSequence([config.seed, COLOUR_SENSOR_STREAM, index]))
             # the ideal depth for the lens's defocus: blurred depth is not a depth (CyclesRenderer.render_blurred)
             rgb = sensor_rgb(colour, frame.depth, config.camera.sensor, rng)
-        return index, encode_frame(frame, depth, rgb), frame.timings
+        return frame, depth, rgb
 
     def render(self, indices: list[int]) -> Rendered:
         motion = self.motion if self.motion is not None else [None] * len(self.poses)

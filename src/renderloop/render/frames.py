@@ -63,15 +63,25 @@ def decode_depth(units: np.ndarray) -> np.ndarray:
     return units.astype(np.float32) / DEPTH_SCALE
 
 
+def stored_images(frame: RenderedFrame, sensor_depth: np.ndarray | None,
+                  sensor_rgb: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Each file of a frame as its PNG holds it (uint8 colour, uint16 depth units and instance ids), keyed by directory."""
+    images = {names.RGB: frame.rgb, names.DEPTH: encode_depth(frame.depth)}
+    if sensor_depth is not None:
+        images[names.DEPTH_SENSOR] = encode_depth(sensor_depth)
+    if sensor_rgb is not None:
+        images[names.RGB_SENSOR] = sensor_rgb
+    images[names.MASKS] = frame.mask.astype(np.uint16)
+    return images
+
+
+def encode_images(images: dict[str, np.ndarray]) -> dict[str, bytes]:
+    return {name: _png(array) for name, array in images.items()}
+
+
 def encode_frame(frame: RenderedFrame, sensor_depth: np.ndarray | None, sensor_rgb: np.ndarray | None = None) -> dict[str, bytes]:
     """PNG bytes of each file of a frame, keyed by directory; workers send these to the one writer."""
-    files = {names.RGB: _png(frame.rgb), names.DEPTH: _png(encode_depth(frame.depth))}
-    if sensor_depth is not None:
-        files[names.DEPTH_SENSOR] = _png(encode_depth(sensor_depth))
-    if sensor_rgb is not None:
-        files[names.RGB_SENSOR] = _png(sensor_rgb)
-    files[names.MASKS] = _png(frame.mask.astype(np.uint16))
-    return files
+    return encode_images(stored_images(frame, sensor_depth, sensor_rgb))
 
 
 def write_frame(run_dir: Path, index: int, files: dict[str, bytes]) -> None:
