@@ -26,7 +26,7 @@ from renderloop.errors import UserError
 from renderloop.io.atomic import final_path
 
 # Each command imports the stages it runs inside its own body: `renderloop fly` has no use for the detector,
-# scikit-learn or Ray, and importing every stage up front cost it 1.5 s of a 6 s paper-preset flight.
+# scikit-learn or Ray, and importing every stage up front made a quarter of its time.
 
 app = typer.Typer(
     name="renderloop",
@@ -269,12 +269,7 @@ def choose_threshold(
 ) -> None:
     """Choose the detector's score threshold on rendered runs: the lowest with at most --max-false of its detections false."""
     from renderloop.perception.detector import Detector
-    from renderloop.perception.threshold import (
-        choose,
-        format_scores,
-        score_thresholds,
-        search_run,
-    )
+    from renderloop.perception.threshold import choose, format_scores, score_thresholds, search_run
     from renderloop.perception.tiling import parse_layouts
 
     defaults = DetectorConfig()
@@ -335,13 +330,7 @@ def evaluate_seeds(
     """The paper's experiment: one full run per seed, then the yield table (eval.csv, eval.json)."""
     from renderloop.evaluation.runner import evaluate
     from renderloop.evaluation.seeds import parse_seeds
-    from renderloop.evaluation.table import (
-        EVAL_CSV,
-        EVAL_JSON,
-        format_table,
-        write_eval,
-    )
-
+    from renderloop.evaluation.table import EVAL_CSV, EVAL_JSON, format_table, write_eval
 
     if executor not in ("local", "ray"):
         raise UserError(f"--executor {executor}: choose from local, ray")

@@ -278,10 +278,10 @@ class Camera:
         if index not in self._frames:
             if not 0 <= index < len(self.timestamps):
                 raise UserError(f"camera frame {index}: only {len(self.timestamps)} frames were asked for")
-            if index in self._exposing:
-                self._submit_exposed(index)
             if index in self._released:
                 raise UserError(f"camera frame {index} was released")
+            if index in self._exposing:
+                self._submit_exposed(index)
             self._frames[index] = Frame(index, self.timestamps[index], self.poses[index], self.renderers.result(index),
                                         self.renderers.images.get(index, {}))
         return self._frames[index]

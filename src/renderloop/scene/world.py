@@ -60,8 +60,8 @@ def world_xml(scene: Scene, config: Config) -> str:
     ET.SubElement(world, "light", name="sun", directional="true", pos=fmt(0, 0, height), dir="0.2 0.3 -1", diffuse="0.7 0.7 0.7")
     # The floor is a slab, not a plane: a plane is tested against every robot geom at every step (a third of the physics time).
     # The floor and each wall span the room, so in the world body their boxes would cover all of the tree that MuJoCo's
-    # midphase walks for the robot at every step: each stands in a static body of its own, and the robot's collision
-    # test costs 3 µs a step instead of 5 (of 9, paper preset). More static bodies cost more in the broadphase than they save.
+    # midphase walks for the robot at every step: each stands in a static body of its own. More static bodies cost
+    # more in the broadphase than they save (docs/stages/fly.md, "Measured").
     for obj in objects:
         for shape in obj.shapes:
             parent = ET.SubElement(world, "body", name=shape.name) if obj.name in ROOM_SHELL else world
