@@ -41,7 +41,14 @@ def sub_benchmark(name: str, *args: str) -> dict:
 
 
 def counting_ms_per_row(repeats: int) -> dict:
-    """The paper scene's rows counted from 8 noisy views of every ripe fruit plus 10 % strays: the count stage's work."""
+    """The paper scene's rows counted from 8 noisy views of every ripe fruit plus 10 % strays: the count stage's work;
+    and OPTICS alone on each row's fixed set, compiled (`renderloop.counting.optics`) beside scikit-learn's estimator,
+    whose labels it must equal."""
+    from scipy.spatial.distance import cdist
+    from sklearn.cluster import OPTICS
+
+    from renderloop.counting.optics import optics_labels
+
     config = load_config("paper", seed=7)
     scene = generate_scene(config)
     rng = np.random.default_rng(0)
@@ -52,9 +59,22 @@ def counting_ms_per_row(repeats: int) -> dict:
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
-        count_rows(scene, detections, "ripe", config.counting, config.seed)
+        rows = count_rows(scene, detections, "ripe", config.counting, config.seed)
         times.append((time.perf_counter() - start) * 1000 / len(scene.rows))
-    return summary(times)
+    counting = config.counting
+    fixed_sets = [(cdist(row.clusters.points, row.clusters.points), row.clusters.min_samples)
+                  for row in rows if row.clusters.min_samples]  # what the count clustered
+    compiled, estimator = [], []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        ours = [optics_labels(d, k, counting.eps, counting.cluster_method) for d, k in fixed_sets]
+        compiled.append((time.perf_counter() - start) * 1000 / len(fixed_sets))
+        start = time.perf_counter()
+        theirs = [OPTICS(min_samples=k, max_eps=counting.eps, cluster_method=counting.cluster_method,
+                         metric="precomputed").fit(d).labels_ for d, k in fixed_sets]
+        estimator.append((time.perf_counter() - start) * 1000 / len(fixed_sets))
+        assert all(np.array_equal(a, b) for a, b in zip(ours, theirs)), "the compiled OPTICS labels differ"
+    return {"count": summary(times), "optics_compiled": summary(compiled), "optics_scikit_learn": summary(estimator)}
 
 
 def whole_run(preset: str, overrides: dict, repeats: int) -> tuple[dict, dict]:
@@ -99,7 +119,10 @@ def rows_of(results: dict, paper_rate: float, quick: bool) -> list[Row]:
          detect["detector_ms_per_frame"]["median"] / detect["detector_2x2_windows_ms_per_frame"]["median"]),
         ("the same, 2x2 and 3x2 windows and mirrored frame (default)", detect["detector_default_ms_per_frame"], "whole frame only",
          detect["detector_ms_per_frame"]["median"] / detect["detector_default_ms_per_frame"]["median"]),
-        ("counting ms per paper row", results["counting_ms_per_row"], "", None),
+        ("counting ms per paper row", results["counting_ms_per_row"]["count"], "", None),
+        ("OPTICS ms per paper row, compiled graph", results["counting_ms_per_row"]["optics_compiled"],
+         "scikit-learn's OPTICS", results["counting_ms_per_row"]["optics_scikit_learn"]["median"]
+         / results["counting_ms_per_row"]["optics_compiled"]["median"]),
         ("demo run: wall s (raster)" if quick else "demo run: wall s", results["demo_seconds"], "goal 300 s",
          300 / results["demo_seconds"]["median"]),
         ("demo run: peak MB", results["demo_peak_mb"], "", None),

@@ -158,6 +158,30 @@ def test_a_fruit_seen_twice_is_counted_whatever_the_row_size():
         np.testing.assert_allclose(found.centers, [[5.0, 5.01, 1.0]], atol=1e-9)
 
 
+@pytest.mark.parametrize("method", ["dbscan", "xi"])
+def test_the_compiled_optics_graph_and_labels_are_scikit_learns_to_the_bit(method):
+    """Rows like the counter's (fruit clouds, gaussian copies, points rounded to the cm so distances tie), and rows
+    where no point is a core point: ordering, core distances, reachability, predecessors and labels all equal."""
+    from scipy.spatial.distance import cdist
+    from sklearn.cluster import OPTICS
+
+    from renderloop.counting.optics import optics_graph, optics_labels
+
+    rng = np.random.default_rng(11)
+    for trial in range(6):
+        n = int(rng.integers(2, 300))
+        centres = rng.uniform(0.0, 0.6, size=(int(rng.integers(1, 15)), 3))
+        detections = centres[rng.integers(0, len(centres), n)] + rng.normal(0.0, [0.004, 0.01, 0.05][trial % 3], (n, 3))
+        points = resample(np.round(detections, 2) if trial % 2 else detections, 200, 0.005, rng)[0]
+        distances, min_samples = cdist(points, points), min_samples_for(n, 200, 2)
+        expected = OPTICS(min_samples=min_samples, max_eps=0.04, cluster_method=method, metric="precomputed",
+                          xi=0.05).fit(distances)
+        graph = optics_graph(distances, min_samples, 0.04)
+        for ours, theirs in zip(graph, ("ordering_", "core_distances_", "reachability_", "predecessor_")):
+            np.testing.assert_array_equal(ours, getattr(expected, theirs))
+        np.testing.assert_array_equal(optics_labels(distances, min_samples, 0.04, method, 0.05), expected.labels_)
+
+
 # --- layout ---------------------------------------------------------------------------------------
 
 

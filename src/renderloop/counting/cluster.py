@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -140,21 +139,14 @@ def cluster_row(detections: np.ndarray, params: ClusterParams, rng: np.random.Ge
         empty = np.zeros((0, 3))
         return RowClusters(detections, np.ones(n_init, dtype=bool), -np.ones(n_init, dtype=int), empty, n_init, 0,
                            np.arange(n_init))
-    # imported here, not at the top: scikit-learn would cost every CLI verb a second
-    import sklearn
+    # imported here, not at the top: scikit-learn and numba would cost every command that reads this module a second
     from scipy.spatial.distance import cdist
-    from sklearn.cluster import OPTICS
+
+    from renderloop.counting.optics import optics_labels
 
     points, original, source = _resample(detections, params.points, params.noise_std, rng)
     min_samples = min_samples_for(n_init, params.points, params.min_views)
-    # The distances precomputed (a 500 x 500 matrix) and scikit-learn's per-call input checks off (the points are
-    # ours, finite): OPTICS queries the neighbours of every point one by one, and those checks were most of its time.
-    optics = OPTICS(min_samples=min_samples, max_eps=params.eps, cluster_method=params.method, metric="precomputed",
-                    eps=params.eps if params.method == "dbscan" else None, xi=params.xi)
-    with warnings.catch_warnings(), sklearn.config_context(assume_finite=True, skip_parameter_validation=True):
-        # detections too sparse to cluster are no fruit: the answer, not a problem
-        warnings.filterwarnings("ignore", message="All reachability values are inf", category=UserWarning)
-        labels = optics.fit(cdist(points, points)).labels_.astype(int)
+    labels = optics_labels(cdist(points, points), min_samples, params.eps, params.method, params.xi).astype(int)
     return RowClusters(points, original, labels, _centers(points, original, labels), n_init, min_samples, source)
 
 
