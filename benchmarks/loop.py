@@ -2,8 +2,10 @@
 
 Paper preset, the scan's first `--seconds` simulated seconds, in one run side by side:
 - flight alone (the Simulation stepped, no sensor),
-- flight + raster camera at 5 Hz (MuJoCo, in this process) + online detection and counting, with the
-  detector's default passes (windows and mirror) and with the whole frame searched once,
+- flight + raster camera at 5 Hz (MuJoCo, in this process) + online detection (on a thread of its own, as the
+  loop stage runs it) and counting, with the detector's default passes (windows and mirror) and with the whole
+  frame searched once; the frames as images, as a mission reads them, and (last row) with their PNGs compressed
+  as `renderloop run --online` writes them,
 - flight + Cycles camera at `--cycles-rate` in `--workers` processes + online detection (with --cycles),
   and how long the physics waited for frames: it waits only when perception asks for a frame that is
   not rendered yet, never while a frame renders that nobody needs yet.
@@ -39,28 +41,37 @@ def _config(backend: str, rate_hz: float, one_pass: bool = False, fast_look: boo
     return Config.model_validate(data)
 
 
-def closed_loop(run_dir: Path, config: Config, seconds: float, camera: bool, workers: int = 1) -> tuple[float, float, int]:
-    """Simulated seconds per wall second, seconds spent waiting for frames, frames taken."""
-    with Simulation(config, run_dir) as sim:
+def closed_loop(run_dir: Path, config: Config, seconds: float, camera: bool, workers: int = 1,
+                encode: bool = False) -> tuple[float, float, int]:
+    """Simulated seconds per wall second, seconds spent waiting for frames, frames taken. Perception on its own
+    thread, as the loop stage runs it; `encode`: the frames' PNGs compressed as they render, as
+    `renderloop run --online` does to write them (the files are not written)."""
+    with Simulation(config, run_dir) as sim, \
+            OnlinePerception(config, OnlineCounter(sim.scene, config.counting, config.seed), thread=True) as perception:
         sim.follow(sim.scan_trajectory())
-        cam = sim.add_camera(workers=workers) if camera else None
-        perception = OnlinePerception(config, OnlineCounter(sim.scene, config.counting, config.seed)) if camera else None
+        cam = sim.add_camera(workers=workers, encode=encode) if camera else None
         taken, waited = 0, 0.0
+
+        def take(wait: bool) -> None:
+            nonlocal taken
+            while cam is not None and taken < len(cam) and (wait or cam.ready(taken)):
+                frame = cam.frame(taken)
+                if encode:
+                    frame.files  # noqa: B018 -- what the loop stage writes: the PNGs compressed on the camera's thread
+                perception.submit(frame)
+                cam.release(taken)
+                taken += 1
+            perception.collect(wait)
+
         start = time.perf_counter()
         while sim.t < seconds and not sim.finished:
             sim.step()
-            while cam is not None and taken < len(cam) and cam.ready(taken):
-                perception.take(cam.frame(taken))
-                cam.release(taken)
-                taken += 1
-        if cam is not None:
-            before = time.perf_counter()
-            while taken < len(cam):  # the end of the run: the last frames are waited for
-                perception.take(cam.frame(taken))
-                cam.release(taken)
-                taken += 1
-            waited = time.perf_counter() - before
-            perception.counter.counts()
+            if not sim.tick % 10:  # as the loop stage looks
+                take(wait=False)
+        before = time.perf_counter()
+        take(wait=True)  # the end of the run: the last frames are waited for
+        waited = time.perf_counter() - before
+        perception.counter.counts()
         return sim.t / (time.perf_counter() - start), waited, taken
 
 
@@ -90,6 +101,8 @@ def main() -> None:
         closed_loop(fast_dir, fast, 1.0, camera=True)
         rows["  the same, raster without shadows or antialiasing"] = summary(
             [closed_loop(fast_dir, fast, args.seconds, camera=True)[0] for _ in range(args.repeats)])
+        rows["  the same, the frames' PNGs compressed (run --online)"] = summary(
+            [closed_loop(fast_dir, fast, args.seconds, camera=True, encode=True)[0] for _ in range(args.repeats)])
         if args.cycles:
             cycles_dir = Path(tmp) / "cycles"
             cycles = _config("cycles", args.cycles_rate)

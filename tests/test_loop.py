@@ -91,18 +91,23 @@ def test_bad_sensor_arguments_are_value_errors_with_the_clis_sentence(flown: Pat
     assert issubclass(UserError, ValueError)
 
 
-def test_a_raster_frame_reads_its_images_as_its_files_hold_them_and_a_released_frame_is_gone(flown: Path):
+@pytest.mark.parametrize("encode", [False, True])
+def test_a_raster_frame_reads_its_images_as_its_files_hold_them_and_a_released_frame_is_gone(flown: Path, encode: bool):
+    """Files compressed ahead on the camera's thread (`encode`) or when first asked for: the same bytes either way."""
     from renderloop.loop.sensors import Frame
+    from renderloop.render.frames import encode_images
 
     config = files.read_config(flown)
     with Simulation(config, flown) as sim:
         sim.follow(sim.scan_trajectory())
-        camera = sim.add_camera(rate_hz=2.0, backend="raster")
+        camera = sim.add_camera(rate_hz=2.0, backend="raster", encode=encode)
         sim.run_until(1.6)
         frames = camera.frames_until(sim.t)
         assert len(frames) == 4 and all(frame.images for frame in frames)
+        assert all((frame.encoded is not None) == encode for frame in frames)
         for frame in frames:  # the images this process kept are what the PNGs written from them decode to
-            from_files = Frame(frame.index, frame.timestamp, frame.pose, frame.files)
+            assert frame.files == encode_images(frame.images)
+            from_files = Frame(frame.index, frame.timestamp, frame.pose, encoded=frame.files)
             for image in ("rgb", "depth", "ideal_rgb", "ideal_depth", "mask"):
                 kept, decoded = getattr(frame, image), getattr(from_files, image)
                 assert kept.dtype == decoded.dtype and np.array_equal(kept, decoded), image

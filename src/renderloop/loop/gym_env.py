@@ -259,7 +259,7 @@ class PepperScanEnv(gymnasium.Env):
         position, rotation = as_stored(now[:3, 3], now[:3, :3])  # rounded as groundtruth.txt holds poses
         pose = homogeneous(rotation, position)
         index = len(self.perception.frames)
-        self._frame = Frame(index, self.sim.t, pose, {}, stored_images(*self.camera.images(index, pose)))  # no files written
+        self._frame = Frame(index, self.sim.t, pose, stored_images(*self.camera.images(index, pose)))
         self.perception.take(self._frame)
         fruit = [f for f in self.perception.counter.counts().fruit
                  if f.plant == self.plant.id and f.support >= self.config.counting.min_views]

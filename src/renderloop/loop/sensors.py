@@ -59,21 +59,31 @@ class Frame:
     index: int
     timestamp: float
     pose: np.ndarray
-    files: dict[str, bytes] = field(repr=False)  # PNG bytes by stream: rgb, depth, masks (and depth_sensor)
-    images: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # the same, not encoded (frames of this process)
+    images: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # by stream, not encoded (frames of this process)
+    encoded: dict[str, bytes] | None = field(default=None, repr=False)  # PNG bytes by stream, where they were made already
+
+    @cached_property
+    def files(self) -> dict[str, bytes]:
+        """PNG bytes by stream (rgb, depth, masks and the sensor streams), as the run directory stores them: compressed
+        now if the camera did not compress them ahead (`Simulation.add_camera(encode=...)`)."""
+        return self.encoded if self.encoded is not None else encode_images(self.images)
 
     def _stored(self, stream: str) -> np.ndarray:
         """A stream as its file holds it: the image itself when this process rendered it, else its PNG decoded."""
         return self.images[stream] if stream in self.images else _decode(self.files[stream])
 
     @property
+    def _streams(self) -> dict:
+        return self.images or self.files
+
+    @property
     def colour_stream(self) -> str:
         """The colour the camera delivers: the sensor stream when the camera has one."""
-        return names.RGB_SENSOR if names.RGB_SENSOR in (self.images or self.files) else names.RGB
+        return names.RGB_SENSOR if names.RGB_SENSOR in self._streams else names.RGB
 
     @property
     def depth_stream(self) -> str:
-        return names.DEPTH_SENSOR if names.DEPTH_SENSOR in (self.images or self.files) else names.DEPTH
+        return names.DEPTH_SENSOR if names.DEPTH_SENSOR in self._streams else names.DEPTH
 
     @cached_property
     def rgb(self) -> np.ndarray:
@@ -116,7 +126,8 @@ def _render_in_worker(index: int, pose: np.ndarray, motion: np.ndarray | None) -
 class _Renderers:
     """Where frames are rendered: this process (raster), local processes, or Ray actors."""
 
-    def __init__(self, config: Config, scene: Scene, backend: str, workers: int, executor: str, address: str | None):
+    def __init__(self, config: Config, scene: Scene, backend: str, workers: int, executor: str, address: str | None,
+                 encode: bool):
         if backend not in BACKENDS:
             raise UserError(f"unknown backend {backend!r} (choose from: {', '.join(BACKENDS)})")
         if executor not in ("local", "ray"):
@@ -128,9 +139,10 @@ class _Renderers:
             self._start_ray(config, scene, backend, workers, address)
         elif backend == "raster" and workers <= 1:
             self.local = FrameWorker(config, scene, None, backend)
-            # PNG compression, a third of a raster frame's time, runs on a thread of its own: zlib works without the GIL
-            self.encoder, self.encoding = ThreadPoolExecutor(1), deque()
-            self._close.extend((self.local.close, lambda: self.encoder.shutdown(cancel_futures=True)))
+            self._close.append(self.local.close)
+            if encode:  # PNG compression, a third of a raster frame's time, on a thread of its own: zlib works without the GIL
+                self.encoder, self.encoding = ThreadPoolExecutor(1), deque()
+                self._close.append(lambda: self.encoder.shutdown(cancel_futures=True))
         else:
             config = threads_per_worker(config, workers)
             pool = ProcessPoolExecutor(max(1, workers), mp_context=get_context("spawn"), initializer=_start_worker,
@@ -155,6 +167,9 @@ class _Renderers:
             images = self.images[index] = stored_images(frame, depth, rgb)
             for image in images.values():  # read by the encoder while the frame's consumers read them too
                 image.flags.writeable = False
+            if not hasattr(self, "encoder"):
+                self.pending[index] = (index, None, frame.timings)  # the frame's files are encoded if they are asked for
+                return
             while len(self.encoding) >= MAX_ENCODING:  # a bounded queue: frames held waiting cost 3 MB each
                 self.encoding.popleft().result()
             self.pending[index] = job = self.encoder.submit(lambda: (index, encode_images(images), frame.timings))
@@ -175,7 +190,7 @@ class _Renderers:
             return bool(self.ray.wait([job], timeout=0)[0])
         return True
 
-    def result(self, index: int) -> dict[str, bytes]:
+    def result(self, index: int) -> dict[str, bytes] | None:
         job = self.pending[index]
         if isinstance(job, Future):
             job = job.result()
@@ -198,13 +213,13 @@ class Camera:
     instant a mission asks for (`trigger`); a mission can also hold the periodic frames back (`pause`)."""
 
     def __init__(self, config: Config, scene: Scene, control_rate_hz: float, rate_hz: float, backend: str, workers: int,
-                 executor: str, address: str | None) -> None:
+                 executor: str, address: str | None, encode: bool = False) -> None:
         if not 0 < rate_hz <= control_rate_hz:
             raise UserError(f"camera rate {rate_hz} Hz: the control loop at {control_rate_hz} Hz cannot serve it "
                             f"(0 < rate <= {control_rate_hz})")
         self.config, self.rate_hz, self.backend = config, rate_hz, backend
         self.blurs = blurs_motion(config, backend)
-        self.renderers = _Renderers(config, scene, backend, workers, executor, address)
+        self.renderers = _Renderers(config, scene, backend, workers, executor, address, encode)
         self.restart()
 
     def restart(self) -> None:
@@ -282,8 +297,8 @@ class Camera:
                 raise UserError(f"camera frame {index} was released")
             if index in self._exposing:
                 self._submit_exposed(index)
-            self._frames[index] = Frame(index, self.timestamps[index], self.poses[index], self.renderers.result(index),
-                                        self.renderers.images.get(index, {}))
+            self._frames[index] = Frame(index, self.timestamps[index], self.poses[index],
+                                        self.renderers.images.get(index, {}), self.renderers.result(index))
         return self._frames[index]
 
     def release(self, index: int) -> None:

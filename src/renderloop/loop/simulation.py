@@ -166,11 +166,14 @@ class Simulation:
     # Sensors ----------------------------------------------------------------------------------------------------------
 
     def add_camera(self, rate_hz: float | None = None, backend: str | None = None, workers: int = 1,
-                   executor: str = "local", address: str | None = None) -> Camera:
+                   executor: str = "local", address: str | None = None, encode: bool = False) -> Camera:
         """The arm's RGB-D camera at `rate_hz` (default the config's), rendered by `backend` (default the config's):
-        raster in this process, Cycles in `workers` processes (or Ray tasks) so the physics keeps stepping."""
+        raster in this process, Cycles in `workers` processes (or Ray tasks) so the physics keeps stepping. `encode`:
+        the raster camera compresses every frame's PNGs (`frame.files`) on a thread as it renders, for a consumer that
+        writes them all; otherwise a raster frame's files are compressed when first asked for (worker processes
+        always send them)."""
         camera = Camera(self.config, self.scene, self.rate_hz, rate_hz or self.config.camera.rate_hz,
-                        backend or self.config.renderer.backend, workers, executor, address)
+                        backend or self.config.renderer.backend, workers, executor, address, encode)
         self.sensors.append(camera)
         return camera
 

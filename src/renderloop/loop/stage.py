@@ -10,6 +10,9 @@ unchanged and count what the batch pipeline counts.
 
 from __future__ import annotations
 
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +20,7 @@ import numpy as np
 from renderloop.config import Config
 from renderloop.counting.online import OnlineCounter
 from renderloop.loop.mission import AdaptiveMission
+from renderloop.loop.sensors import Frame
 from renderloop.loop.simulation import Simulation
 from renderloop.perception.detector import Detector
 from renderloop.perception.stage import find_fruit, write_detections
@@ -24,40 +28,80 @@ from renderloop.render.camera import Intrinsics
 from renderloop.render.frames import write_frame
 from renderloop.render.stage import clear_frames, finish_render, render_record
 from renderloop.rundir import files, names
-from renderloop.rundir.models import DetectionFrame
+from renderloop.rundir.models import Detection, DetectionFrame
 from renderloop.rundir.stage import Job, Stage
 from renderloop.sim.stage import NEEDS as FLY_NEEDS
 from renderloop.sim.stage import write_flight
 
 
 class OnlinePerception:
-    """The detector and the fruit points on each frame in frame order, feeding an online counter."""
+    """The detector and the fruit points on each frame in frame order, feeding an online counter.
 
-    def __init__(self, config: Config, counter: OnlineCounter) -> None:
-        self.detector, self.settings = Detector(config.detector.model), config.detector
+    `take` perceives a frame at once. `submit` and `collect` perceive frames on a thread of their own while the
+    caller goes on stepping and rendering (ONNX Runtime, with one thread of its own, and numpy's array work run
+    without the GIL): frames are perceived in the order they are submitted, and `collect` adds the finished ones to
+    the counter in that order, on the caller's thread, so the counter reads the same whenever the thread finishes.
+    A decision reads the counter after `collect(wait=True)`. ONNX Runtime gives the same boxes on one thread as on
+    several (tests/test_loop.py compares the online run's detections.json with the batch stage's)."""
+
+    def __init__(self, config: Config, counter: OnlineCounter | None, thread: bool = False) -> None:
+        self.detector, self.settings = Detector(config.detector.model, threads=1 if thread else 0), config.detector
         self.intrinsics = Intrinsics.from_config(config.camera)
         self.counter = counter
         self.frames: list[DetectionFrame] = []
+        self._thread = ThreadPoolExecutor(1) if thread else None
+        self._pending: deque[tuple[Frame, Future]] = deque()
 
-    def take(self, frame) -> DetectionFrame:
-        detections = find_fruit(self.detector, frame.rgb, frame.depth, frame.pose, self.settings, self.intrinsics)
+    def _found(self, frame: Frame) -> list[Detection]:
+        return find_fruit(self.detector, frame.rgb, frame.depth, frame.pose, self.settings, self.intrinsics)
+
+    def _add(self, frame: Frame, detections: list[Detection]) -> DetectionFrame:
         found = DetectionFrame(index=frame.index, timestamp=round(float(frame.timestamp), 6),
                                image=names.frame_file(frame.colour_stream, frame.index), detections=detections)
         self.frames.append(found)
         self.counter.add(found, frame.pose[:3, 3])
         return found
 
+    def take(self, frame: Frame) -> DetectionFrame:
+        """Perceive `frame` now (after the frames submitted before it)."""
+        self.collect(wait=True)
+        return self._add(frame, self._found(frame))
+
+    def submit(self, frame: Frame) -> None:
+        """Perceive `frame` on the perception thread (at once without one); `collect` adds it to the counter."""
+        if self._thread is None:
+            self._add(frame, self._found(frame))
+        else:
+            self._pending.append((frame, self._thread.submit(self._found, frame)))
+
+    def collect(self, wait: bool) -> None:
+        """Add the submitted frames perceived so far (with `wait`, all of them) to the counter, in frame order."""
+        while self._pending and (wait or self._pending[0][1].done()):
+            frame, job = self._pending.popleft()
+            self._add(frame, job.result())
+
+    def close(self) -> None:
+        if self._thread is not None:
+            self._thread.shutdown(cancel_futures=True)
+
+    def __enter__(self) -> OnlinePerception:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
 
 def _fly_in_loop(run_dir: Path, config: Config, job: Job) -> None:
     """The scan flown with the camera in the loop; with `mission.kind: adaptive`, steered by `AdaptiveMission`."""
     adaptive = config.mission.kind == "adaptive"
     clear_frames(run_dir)  # the frames of an earlier or interrupted run: these are rendered again as the robot flies
-    with Simulation(config, run_dir) as sim:
+    with ExitStack() as stack:
+        sim = stack.enter_context(Simulation(config, run_dir))
         sim.follow(sim.scan_trajectory())
         rate = config.mission.adaptive.first_pass_rate_hz if adaptive else None
-        camera = sim.add_camera(rate_hz=rate, workers=job.workers, executor=job.executor, address=job.address)
+        camera = sim.add_camera(rate_hz=rate, workers=job.workers, executor=job.executor, address=job.address, encode=True)
         counter = OnlineCounter(sim.scene, config.counting, config.seed)
-        perception = OnlinePerception(config, counter)
+        perception = stack.enter_context(OnlinePerception(config, counter, thread=True))
         mission = AdaptiveMission(sim, camera, counter, config) if adaptive else None
         written = 0
 
@@ -67,18 +111,19 @@ def _fly_in_loop(run_dir: Path, config: Config, job: Job) -> None:
             while written < len(camera) and (wait or camera.ready(written)):
                 frame = camera.frame(written)
                 write_frame(run_dir, frame.index, frame.files)
-                perception.take(frame)
+                perception.submit(frame)
                 if mission is not None:
                     mission.take(frame)
-                camera.release(frame.index)
+                camera.release(frame.index)  # the perception thread holds the frame until it is done with it
                 written += 1
                 if job.progress:
                     job.progress(written, max(len(camera), 1))
+            perception.collect(wait)
 
         while not sim.finished:
             sim.step()
             if mission is not None and mission.due():
-                take_ready(wait=True)  # a decision reads every frame taken before it, whenever they render
+                take_ready(wait=True)  # a decision reads every frame taken before it, whenever they render and are perceived
                 mission.decide()
             elif not sim.tick % 10:  # a look every 10 ticks is plenty for frames that come at 5 Hz at most
                 take_ready(wait=False)
