@@ -117,6 +117,35 @@ def test_a_raster_frame_reads_its_images_as_its_files_hold_them_and_a_released_f
             camera.frame(1)
 
 
+def test_perception_on_its_own_thread_feeds_the_counter_what_perception_in_line_does(flown: Path, monkeypatch):
+    """Frames submitted faster than the thread perceives them (at most MAX_PERCEIVING wait) and collected whenever:
+    the same detections, in frame order, and the same counts as each frame perceived at once."""
+    from renderloop.loop import stage
+    from renderloop.loop.stage import OnlinePerception
+
+    monkeypatch.setattr(stage, "MAX_PERCEIVING", 2)
+    config = files.read_config(flown)
+    with Simulation(config, flown) as sim:
+        sim.follow(sim.scan_trajectory())
+        camera = sim.add_camera(rate_hz=5.0, backend="raster")
+        sim.run_until(2.0)
+        frames = camera.frames_until(sim.t)
+        in_line = OnlinePerception(config, OnlineCounter(sim.scene, config.counting, config.seed))
+        for frame in frames:
+            in_line.take(frame)
+        with OnlinePerception(config, OnlineCounter(sim.scene, config.counting, config.seed), thread=True) as threaded:
+            for k, frame in enumerate(frames):
+                threaded.submit(frame)
+                assert len(threaded._pending) <= 2
+                if k % 3 == 2:
+                    threaded.collect(wait=False)
+            threaded.collect(wait=True)
+    assert len(frames) == 10 and any(found.detections for found in in_line.frames)
+    assert [found.index for found in threaded.frames] == list(range(10))
+    assert threaded.frames == in_line.frames
+    assert threaded.counter.counts().per_plant() == in_line.counter.counts().per_plant()
+
+
 def _contract(run_dir: Path) -> dict[str, bytes]:
     """A run's files, less what says how it was run (its config, its seconds, its own bookkeeping)."""
     skip = {names.CONFIG, names.TIMINGS, *BOOKKEEPING}

@@ -34,6 +34,9 @@ from renderloop.sim.stage import NEEDS as FLY_NEEDS
 from renderloop.sim.stage import write_flight
 
 
+MAX_PERCEIVING = 8  # frames waiting for the perception thread before `submit` waits for the oldest
+
+
 class OnlinePerception:
     """The detector and the fruit points on each frame in frame order, feeding an online counter.
 
@@ -68,17 +71,23 @@ class OnlinePerception:
         return self._add(frame, self._found(frame))
 
     def submit(self, frame: Frame) -> None:
-        """Perceive `frame` on the perception thread (at once without one); `collect` adds it to the counter."""
+        """Perceive `frame` on the perception thread (at once without one); `collect` adds it to the counter. With
+        MAX_PERCEIVING frames waiting already, the oldest is waited for: a frame held costs 3 MB at 640x480."""
         if self._thread is None:
             self._add(frame, self._found(frame))
-        else:
-            self._pending.append((frame, self._thread.submit(self._found, frame)))
+            return
+        while len(self._pending) >= MAX_PERCEIVING:
+            self._add(*self._next())
+        self._pending.append((frame, self._thread.submit(self._found, frame)))
+
+    def _next(self) -> tuple[Frame, list[Detection]]:
+        frame, job = self._pending.popleft()
+        return frame, job.result()
 
     def collect(self, wait: bool) -> None:
         """Add the submitted frames perceived so far (with `wait`, all of them) to the counter, in frame order."""
         while self._pending and (wait or self._pending[0][1].done()):
-            frame, job = self._pending.popleft()
-            self._add(frame, job.result())
+            self._add(*self._next())
 
     def close(self) -> None:
         if self._thread is not None:
