@@ -94,6 +94,57 @@ def test_boxes_cover_the_mask_and_unhidden_fruit_are_fully_visible():
     assert np.percentile(fractions, 90) > 0.85
 
 
+def test_the_neighbouring_rows_fruit_are_labelled_one_by_one_from_their_shared_mask_id():
+    """Their masks share one id: every such pixel goes to one fruit whose projected mesh holds it at its depth, the
+    nearer of two that overlap, and each fruit's box is the extent of its pixels, with the scene's fruit rules."""
+    from matplotlib.path import Path as PolygonPath
+    from scipy.spatial import ConvexHull
+
+    from renderloop.dataset.labels import neighbour_fruit_boxes
+    from renderloop.scene.model import NEIGHBOUR_FRUIT_ID
+    from renderloop.scene.objects import neighbour_fruit
+
+    config, scene = dataset_scene(DatasetSpec(seed=21, styles=("highwire",), environments=("film",)), 0)
+    fruit = neighbour_fruit(scene.environment)
+    assert len(fruit) > 100 and all(len(vertices) > 20 for _, vertices in fruit)
+    intrinsics, near = Intrinsics.from_config(config.camera), config.camera.clip[0]
+    rng = np.random.default_rng(3)
+    marked_total, records = 0, []
+    with RasterRenderer(scene, config, intrinsics) as renderer:
+        for _ in range(5):
+            pose = random_view(scene, rng)
+            frame = renderer.render(pose)
+            marked = frame.mask == NEIGHBOUR_FRUIT_ID
+            found = neighbour_fruit_boxes(frame.mask, frame.depth, fruit, pose, intrinsics, near)
+            assert sum(record["pixels"] for record in found) >= 0.99 * marked.sum()  # nearly every pixel is a fruit's
+            for record in found:
+                x0, y0, x1, y1 = record["bbox"]
+                assert record["pepper_id"] is None and record["label"] in ("ripe", "unripe")
+                assert marked[y0:y1, x0:x1].sum() >= record["pixels"] and 0 < record["visible_fraction"] <= 1
+                assert (record["ignore"] == "tiny") == (min(x1 - x0, y1 - y0) < MIN_SIDE) or record["ignore"] == "occluded"
+            marked_total, records = marked_total + marked.sum(), records + found
+    assert marked_total > 200 and any(record["ignore"] is None for record in records)
+    # two fruit where one hides the other: each marked pixel is the nearer one's
+    front, back = fruit[0], fruit[1]
+    centre = front[1].mean(axis=0)
+    pose = np.eye(4)
+    pose[:3, :3] = [[1, 0, 0], [0, 0, 1], [0, -1, 0]]  # optical axes x, y, z: world +x, -z (down), +y (ahead)
+    pose[:3, 3] = centre - [0.0, 0.6, 0.0]
+    behind = (back[0], back[1] - back[1].mean(axis=0) + centre + [0.02, 0.1, 0.0])  # 10 cm further, 2 cm aside
+    mask, depth = np.zeros((intrinsics.height, intrinsics.width), np.uint16), np.zeros((intrinsics.height, intrinsics.width), np.float32)
+    for _, vertices in (behind, front):  # the nearer drawn last, as a renderer's depth test leaves it
+        local = (vertices - pose[:3, 3]) @ pose[:3, :3]
+        uv = intrinsics.project(local)
+        cols, rows = np.meshgrid(np.arange(intrinsics.width), np.arange(intrinsics.height))
+        hull = PolygonPath(uv[ConvexHull(uv).vertices])
+        inside = hull.contains_points(np.column_stack([cols.ravel(), rows.ravel()])).reshape(cols.shape)
+        mask[inside], depth[inside] = NEIGHBOUR_FRUIT_ID, local[:, 2].mean()
+    both = neighbour_fruit_boxes(mask, depth, [behind, front], pose, intrinsics, near)
+    assert len(both) == 2 and sum(r["pixels"] for r in both) == (mask > 0).sum()
+    far, close = sorted(both, key=lambda r: r["visible_fraction"])
+    assert close["visible_fraction"] > 0.95 and far["visible_fraction"] < 0.9
+
+
 def _files(root: Path) -> dict[str, bytes]:
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 

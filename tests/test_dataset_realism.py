@@ -19,14 +19,14 @@ from renderloop.scene.objects import Box
 REAL = DatasetSpec(seed=21, styles=("simple", "pepper"), environments=("plain", "film"), clutter=True, close=0.5, sensor=0.5)
 
 
-def test_scenes_draw_both_plant_styles_and_both_surroundings_and_the_neighbours_bear_no_fruit():
+def test_scenes_draw_both_plant_styles_and_both_surroundings_and_the_neighbours_bear_fruit():
     drawn = [dataset_scene(REAL, index) for index in range(6)]
     assert {config.plants.style for config, _ in drawn} == {"simple", "pepper"}
     assert {config.greenhouse.environment.kind for config, _ in drawn} == {"plain", "film"}
     for config, scene in drawn:
         assert (scene.environment is not None) == (config.greenhouse.environment.kind == "film")
         if scene.environment is not None:
-            assert scene.environment.prototypes and not any(p.fruit for p in scene.environment.prototypes)
+            assert scene.environment.prototypes and any(p.fruit for p in scene.environment.prototypes)  # labelled too
         assert config.camera.clip[0] == pytest.approx(0.05)  # close views need a near clip closer than the scan's
     # a spec that draws nothing new builds the scenes it always did
     plain = dataset_scene(DatasetSpec(seed=21), 0)

@@ -28,7 +28,7 @@ from PIL import Image
 from renderloop.config import SensorConfig
 from renderloop.dataset.clutter import clutter_objects, standing_boards
 from renderloop.dataset.coco import write_coco
-from renderloop.dataset.labels import pepper_boxes, pepper_vertices
+from renderloop.dataset.labels import neighbour_fruit_boxes, pepper_boxes, pepper_vertices
 from renderloop.dataset.preview import draw_preview
 from renderloop.dataset.scenes import DatasetSpec, dataset_scene
 from renderloop.dataset.views import close_view, random_view
@@ -38,7 +38,7 @@ from renderloop.render.camera import Intrinsics
 from renderloop.render.executor import COLOUR_SENSOR_STREAM, ray_session, spawnable_sys_path
 from renderloop.render.sensor import sensor_rgb
 from renderloop.rundir import ownership
-from renderloop.scene.objects import greenhouse_objects
+from renderloop.scene.objects import greenhouse_objects, neighbour_fruit
 
 VIEW_STREAM = 0x71E3
 CLUTTER_STREAM = 0xC1A7
@@ -78,7 +78,7 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
     poses = [close_view(scene, rng, boards) if spec.close > 0 and rng.random() < spec.close
              else random_view(scene, rng, spec.distance, boards) for _ in range(spec.views_per_scene)]
     peppers = {pepper.id: pepper for pepper in scene.peppers}
-    meshes = pepper_vertices(scene)
+    meshes, neighbours = pepper_vertices(scene), neighbour_fruit(scene.environment)
     objects = greenhouse_objects(scene) + (clutter_objects(scene, clutter_rng, boards) if spec.clutter else [])
     out = []
     with CyclesRenderer.from_objects(objects, config, intrinsics, scene.seed, scene.room, scene.environment) as renderer:
@@ -89,7 +89,8 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
                 "image": f"images/{image_name(index, 'jpg')}", "scene": scene_index, "width": intrinsics.width,
                 "height": intrinsics.height, "split": "val" if spec.is_val(scene_index) else "train",
                 "samples": config.renderer.samples, "pose": np.round(poses[view], 9).tolist(),
-                "peppers": pepper_boxes(frame.mask, peppers, meshes, poses[view], intrinsics, config.camera.clip[0]),
+                "peppers": pepper_boxes(frame.mask, peppers, meshes, poses[view], intrinsics, config.camera.clip[0])
+                + neighbour_fruit_boxes(frame.mask, frame.depth, neighbours, poses[view], intrinsics, config.camera.clip[0]),
             }
             rgb = frame.rgb
             sensor = np.random.default_rng(np.random.SeedSequence([spec.seed, COLOUR_SENSOR_STREAM, index]))

@@ -8,6 +8,11 @@ without occluders), whose few pixels do not look like a pepper. torchvision's SS
 has no ignore regions, so training simply does not make them targets; the COCO
 files mark them iscrowd, which COCO evaluation ignores. Fruit cut by the image border are not occluded: the silhouette is clipped
 to the image first.
+
+The neighbouring rows' fruit are real peppers in the picture too, labelled by the same
+rules (`neighbour_fruit_boxes`); left unlabelled they would teach the detector that a
+pepper behind the scanned row is background. Their masks share one id, so their pixels
+are told apart by their copies' projected meshes and the frame's depth.
 """
 
 from __future__ import annotations
@@ -18,11 +23,12 @@ from scipy.spatial import ConvexHull, QhullError
 
 from renderloop.perception.scoring import mask_boxes
 from renderloop.render.camera import Intrinsics
-from renderloop.scene.model import Pepper, Scene
+from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Pepper, Scene
 from renderloop.scene.plant_meshes import plant_meshes
 
 MIN_SIDE = 6  # px at the dataset's 320 px width
 MIN_VISIBLE = 0.25
+DEPTH_TOLERANCE = 0.01  # m: a pixel's depth may lie this far outside its fruit's mesh (the mesh's facets, the depth's precision)
 LABELS = ("ripe", "unripe")  # COCO category ids 1 and 2
 
 
@@ -38,8 +44,11 @@ def pepper_vertices(scene: Scene) -> dict[int, np.ndarray]:
     return vertices
 
 
-def silhouette_pixels(vertices: np.ndarray, pose: np.ndarray, intrinsics: Intrinsics, near: float) -> int | None:
-    """Pixels of the image inside the convex hull of the projected mesh; None when part of it is behind the near plane."""
+def _silhouette(vertices: np.ndarray, pose: np.ndarray, intrinsics: Intrinsics,
+                near: float) -> tuple[np.ndarray, int, int] | None:
+    """The image pixels inside the convex hull of the projected mesh, as a mask over its bounding box and the box's
+    top-left pixel (x0, y0); an empty mask off the image or for a degenerate hull; None when part of the mesh is
+    behind the near plane."""
     local = (np.asarray(vertices) - pose[:3, 3]) @ pose[:3, :3]
     if np.any(local[:, 2] <= near):
         return None
@@ -47,14 +56,31 @@ def silhouette_pixels(vertices: np.ndarray, pose: np.ndarray, intrinsics: Intrin
     try:
         hull = uv[ConvexHull(uv).vertices]
     except QhullError:
-        return 0
+        return np.zeros((0, 0), dtype=bool), 0, 0
     x0, y0 = np.maximum(np.floor(hull.min(axis=0)).astype(int), 0)
     x1 = min(int(np.ceil(hull[:, 0].max())), intrinsics.width - 1)
     y1 = min(int(np.ceil(hull[:, 1].max())), intrinsics.height - 1)
     if x1 < x0 or y1 < y0:
-        return 0
+        return np.zeros((0, 0), dtype=bool), 0, 0
     xs, ys = np.meshgrid(np.arange(x0, x1 + 1), np.arange(y0, y1 + 1))
-    return int(PolygonPath(hull).contains_points(np.column_stack([xs.ravel(), ys.ravel()])).sum())
+    inside = PolygonPath(hull).contains_points(np.column_stack([xs.ravel(), ys.ravel()])).reshape(xs.shape)
+    return inside, int(x0), int(y0)
+
+
+def silhouette_pixels(vertices: np.ndarray, pose: np.ndarray, intrinsics: Intrinsics, near: float) -> int | None:
+    """Pixels of the image inside the convex hull of the projected mesh; None when part of it is behind the near plane."""
+    silhouette = _silhouette(vertices, pose, intrinsics, near)
+    return None if silhouette is None else int(silhouette[0].sum())
+
+
+def _record(pepper_id: int | None, box: tuple[int, int, int, int], pepper: Pepper, pixels: int, visible: float,
+            min_side: float) -> dict:
+    tiny = min(box[2] - box[0], box[3] - box[1]) < min_side
+    return {
+        "pepper_id": pepper_id, "bbox": list(box), "label": label_of(pepper), "pixels": pixels,
+        "visible_fraction": round(min(visible, 1.0), 4),
+        "ignore": "tiny" if tiny else "occluded" if visible < MIN_VISIBLE else None,
+    }
 
 
 def pepper_boxes(mask: np.ndarray, peppers: dict[int, Pepper], meshes: dict[int, np.ndarray], pose: np.ndarray,
@@ -65,10 +91,41 @@ def pepper_boxes(mask: np.ndarray, peppers: dict[int, Pepper], meshes: dict[int,
     for pepper_id, box in mask_boxes(mask).items():
         silhouette = silhouette_pixels(meshes[pepper_id], pose, intrinsics, near)
         visible = pixels[pepper_id] / silhouette if silhouette else 1.0
-        tiny = min(box[2] - box[0], box[3] - box[1]) < min_side
-        records.append({
-            "pepper_id": pepper_id, "bbox": list(box), "label": label_of(peppers[pepper_id]), "pixels": int(pixels[pepper_id]),
-            "visible_fraction": round(min(visible, 1.0), 4),
-            "ignore": "tiny" if tiny else "occluded" if visible < MIN_VISIBLE else None,
-        })
+        records.append(_record(pepper_id, box, peppers[pepper_id], int(pixels[pepper_id]), visible, min_side))
+    return records
+
+
+def neighbour_fruit_boxes(mask: np.ndarray, depth: np.ndarray, fruit: list[tuple[Pepper, np.ndarray]], pose: np.ndarray,
+                          intrinsics: Intrinsics, near: float, min_side: float = MIN_SIDE) -> list[dict]:
+    """One record per fruit of the neighbouring rows seen in `mask` (`pepper_id` None), with the rules of
+    `pepper_boxes`. The mask marks them all NEIGHBOUR_FRUIT_ID, so each such pixel goes to the fruit (of `fruit`:
+    its pepper and world vertices, `renderloop.scene.objects.neighbour_fruit`) whose projected silhouette holds it
+    and whose depth span holds the pixel's depth, the nearest when several do; pixels no fruit explains stay
+    unlabelled."""
+    marked = mask == NEIGHBOUR_FRUIT_ID
+    if not marked.any():
+        return []
+    owner = np.full(mask.shape, -1, dtype=np.int64)
+    nearest, farthest = float(depth[marked].min()) - DEPTH_TOLERANCE, float(depth[marked].max()) + DEPTH_TOLERANCE
+    nearest_first = []
+    for k, (_, vertices) in enumerate(fruit):
+        z = (np.asarray(vertices) - pose[:3, 3]) @ pose[:3, 2]  # along the optical axis: the depth a frame stores
+        if z.max() >= nearest and z.min() <= farthest:  # else no marked pixel can be this fruit's
+            nearest_first.append((float(z.min()), float(z.max()), k))
+    silhouettes = {}
+    for low, high, k in sorted(nearest_first):
+        silhouette = _silhouette(fruit[k][1], pose, intrinsics, near)
+        if silhouette is None or not silhouette[0].any():
+            continue
+        inside, x0, y0 = silhouette
+        region = (slice(y0, y0 + inside.shape[0]), slice(x0, x0 + inside.shape[1]))
+        seen = depth[region]
+        mine = inside & marked[region] & (owner[region] < 0) & (seen >= low - DEPTH_TOLERANCE) & (seen <= high + DEPTH_TOLERANCE)
+        owner[region][mine] = k
+        silhouettes[k] = int(inside.sum())
+    records = []
+    for k in np.unique(owner[owner >= 0]).tolist():
+        rows, cols = np.nonzero(owner == k)
+        box = (int(cols.min()), int(rows.min()), int(cols.max()) + 1, int(rows.max()) + 1)
+        records.append(_record(None, box, fruit[k][0], len(rows), len(rows) / silhouettes[k], min_side))
     return records

@@ -24,6 +24,7 @@ from renderloop.scene.generate import generate_scene
 from renderloop.scene.model import Scene
 
 SCENE_STREAM = 0xDA7A
+FORMAT_VERSION = 2  # 2: the neighbouring rows' plants bear their fruit, labelled (1 drew them without): not resumable into 1
 MAX_TRIES = 20
 STYLES = ("simple", "pepper", "highwire")
 ENVIRONMENTS = ("plain", "film")
@@ -66,7 +67,7 @@ class DatasetSpec:
                 "clutter": False, "close": 0.0}
 
     def manifest(self) -> dict:
-        return {"format_version": 1, **{key: list(v) if isinstance(v, tuple) else v for key, v in asdict(self).items()}}
+        return {"format_version": FORMAT_VERSION, **{key: list(v) if isinstance(v, tuple) else v for key, v in asdict(self).items()}}
 
     def is_val(self, scene_index: int) -> bool:
         return scene_index % self.val_every == self.val_every - 1
@@ -116,15 +117,6 @@ def _scene_overrides(rng: np.random.Generator, spec: DatasetSpec) -> dict:
     return overrides
 
 
-def _fruitless_neighbours(scene: Scene) -> Scene:
-    """The scene with no fruit on the neighbouring rows' plants: those are drawn but in no mask, so in a training
-    image they would be peppers labelled as background."""
-    if scene.environment is None:
-        return scene
-    prototypes = [prototype.model_copy(update={"fruit": []}) for prototype in scene.environment.prototypes]
-    return scene.model_copy(update={"environment": scene.environment.model_copy(update={"prototypes": prototypes})})
-
-
 def dataset_scene(spec: DatasetSpec, scene_index: int) -> tuple[Config, Scene]:
     """The config and scene of dataset scene `scene_index`; a draw whose fruit do not fit is redrawn."""
     rng = np.random.default_rng(np.random.SeedSequence([spec.seed, SCENE_STREAM, scene_index]))
@@ -133,7 +125,7 @@ def dataset_scene(spec: DatasetSpec, scene_index: int) -> tuple[Config, Scene]:
         data = deep_merge(base, {**_scene_overrides(rng, spec), "seed": int(rng.integers(2**62))})
         config = validate(data, f"dataset scene {scene_index}")
         try:
-            return config, _fruitless_neighbours(generate_scene(config))
+            return config, generate_scene(config)
         except UserError:
             continue
     raise UserError(f"dataset scene {scene_index}: no fruit layout fits after {MAX_TRIES} draws")

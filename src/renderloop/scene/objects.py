@@ -24,7 +24,7 @@ import numpy as np
 from renderloop.scene import meshes
 from renderloop.scene.materials import MATERIALS, RGBA
 from renderloop.scene.meshes import Mesh
-from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Environment, Plant, Scene
+from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Environment, Pepper, Plant, Scene
 from renderloop.scene.plant_meshes import LEAF_SHAPES, PETIOLE, leaf_template, leaf_transform, plant_meshes
 
 __all__ = ["Box", "Cylinder", "Instances", "SceneObject", "greenhouse_objects", "collision_objects", "static_objects",
@@ -338,6 +338,21 @@ def _background_plants(environment: Environment) -> list[SceneObject]:
         objects.append(SceneObject(f"background_{part}", material=material, smooth=part != "pot", instances=instances,
                                    pass_index=NEIGHBOUR_FRUIT_ID if part.startswith("fruit_") else 0))
     return objects
+
+
+def neighbour_fruit(environment: Environment | None) -> list[tuple[Pepper, np.ndarray]]:
+    """Every fruit of the neighbouring rows as `_background_plants` draws it: its prototype's pepper and its mesh's
+    vertices in the world, copy by copy. The masks mark them all NEIGHBOUR_FRUIT_ID; the training set tells them
+    apart with these (`renderloop.dataset.labels.neighbour_fruit_boxes`)."""
+    if environment is None:
+        return []
+    templates = [[(pepper, _neighbour_fruit(pepper)) for pepper in prototype.fruit] for prototype in environment.prototypes]
+    fruit = []
+    for copy in environment.plants:
+        transform = _yaw(copy.position, copy.yaw)
+        for pepper, mesh in templates[copy.prototype]:
+            fruit.append((pepper, mesh.transformed(transform[:3, :3], transform[:3, 3]).vertices))
+    return fruit
 
 
 def film_tint(age: float) -> tuple[float, float, float]:
