@@ -5,6 +5,7 @@ its structure clear of the scan, and the greenhouse preset runs end to end."""
 from __future__ import annotations
 
 import hashlib
+import json
 from pathlib import Path
 
 import numpy as np
@@ -135,6 +136,18 @@ def test_renderloop_run_with_the_greenhouse_preset_completes(monkeypatch, capsys
     assert code == 0, err
     assert (tmp_path / "gh" / names.COUNTS).is_file() and (tmp_path / "gh" / "report.html").is_file()
     assert files.read_scene(tmp_path / "gh").environment is not None
+    # its frames as a training set: the neighbouring rows' fruit labelled too, told apart by the depth frames
+    from renderloop.dataset.from_runs import dataset_from_runs
+    from renderloop.render.frames import read_png
+
+    images = dataset_from_runs([tmp_path / "gh"], tmp_path / "set", val_runs=0)
+    marked = labelled = 0
+    for index in range(images):
+        record = json.loads((tmp_path / "set" / "labels" / f"{index:06d}.json").read_text())
+        mask = read_png(tmp_path / "gh" / names.frame_file(names.MASKS, record["frame"]), np.uint16)
+        marked += int((mask == NEIGHBOUR_FRUIT_ID).sum())
+        labelled += sum(p["pixels"] for p in record["peppers"] if p["pepper_id"] is None)
+    assert marked > 0 and labelled >= 0.99 * marked
 
 
 def test_a_cycles_frame_of_the_film_greenhouse_shows_the_crop_against_clipped_white_film(film):

@@ -6,8 +6,9 @@ frames of a scan show it the way the flight will: the camera's distances and ang
 other seeds are other greenhouses, so a run kept out of this set still scores the
 detector on scenes it has not seen.
 
-Labels follow `renderloop dataset` (`renderloop.dataset.labels`), with the tiny-fruit
-side scaled to the frame width so that the rule means the same at the detector's input.
+Labels follow `renderloop dataset` (`renderloop.dataset.labels`), the neighbouring rows'
+fruit included (told apart by the run's depth frames), with the tiny-fruit side scaled to
+the frame width so that the rule means the same at the detector's input.
 Validation holds whole runs (the last `val_runs` given). The layout is the dataset's:
 `images/NNNNNN.jpg`, `labels/NNNNNN.json`, `annotations/instances_{train,val}.json`,
 `dataset.json` (the runs, their scene hashes and the frame step), `preview.png`.
@@ -24,12 +25,13 @@ import numpy as np
 
 from renderloop.dataset.build import MANIFEST, PARTS, PREVIEW, claim_dataset, image_name, jpeg_bytes
 from renderloop.dataset.coco import write_coco
-from renderloop.dataset.labels import MIN_SIDE, pepper_boxes, pepper_vertices
+from renderloop.dataset.labels import MIN_SIDE, neighbour_fruit_boxes, pepper_boxes, pepper_vertices
 from renderloop.dataset.preview import draw_preview
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_bytes, write_json
-from renderloop.render.frames import read_png
+from renderloop.render.frames import decode_depth, read_png
 from renderloop.rundir import files, names, ownership
+from renderloop.scene.objects import neighbour_fruit
 
 NEEDS = (names.CONFIG, names.SCENE, names.POSES, names.CAMERA_INFO)
 LABEL_WIDTH = 320  # the width at which `labels.MIN_SIDE` is set: the detector's input
@@ -43,7 +45,7 @@ def _frames(run_dir: Path, every: int) -> tuple[np.ndarray, list[int]]:
     files.require(run_dir, NEEDS)
     _, poses = files.read_poses(run_dir)
     indices = list(range(0, len(poses), every))
-    for stream in (names.RGB, names.MASKS):
+    for stream in (names.RGB, names.DEPTH, names.MASKS):
         missing = next((i for i in indices if not (run_dir / names.frame_file(stream, i)).is_file()), None)
         if missing is not None:
             raise UserError(f"{run_dir / names.frame_file(stream, missing)}: missing (render the run with masks first)")
@@ -56,7 +58,7 @@ def _run_records(run_dir: Path, poses: np.ndarray, indices: list[int], first: in
     near = files.read_config(run_dir).camera.clip[0]
     intrinsics = files.read_camera_info(run_dir)
     peppers = {pepper.id: pepper for pepper in scene.peppers}
-    meshes = pepper_vertices(scene)
+    meshes, neighbours = pepper_vertices(scene), neighbour_fruit(scene.environment)
     min_side = MIN_SIDE * intrinsics.width / LABEL_WIDTH
     records = []
     for offset, index in enumerate(indices):
@@ -71,6 +73,9 @@ def _run_records(run_dir: Path, poses: np.ndarray, indices: list[int], first: in
             "height": intrinsics.height, "split": split, "pose": np.round(poses[index], 9).tolist(),
             "peppers": pepper_boxes(mask, peppers, meshes, poses[index], intrinsics, near, min_side),
         }
+        if neighbours:  # the neighbouring rows' fruit, told apart by the depth
+            depth = decode_depth(read_png(run_dir / names.frame_file(names.DEPTH, index), np.uint16))
+            record["peppers"] += neighbour_fruit_boxes(mask, depth, neighbours, poses[index], intrinsics, near, min_side)
         write_json(out / "labels" / image_name(first + offset, "json"), record)
         records.append(record)
     return records
