@@ -137,13 +137,14 @@ def test_renderloop_run_with_the_greenhouse_preset_completes(monkeypatch, capsys
     assert (tmp_path / "gh" / names.COUNTS).is_file() and (tmp_path / "gh" / "report.html").is_file()
     assert files.read_scene(tmp_path / "gh").environment is not None
     # its frames as a training set: the neighbouring rows' fruit labelled too, told apart by the depth frames
+    from renderloop.dataset.build import image_name
     from renderloop.dataset.from_runs import dataset_from_runs
     from renderloop.render.frames import read_png
 
     images = dataset_from_runs([tmp_path / "gh"], tmp_path / "set", val_runs=0)
     marked = labelled = 0
     for index in range(images):
-        record = json.loads((tmp_path / "set" / "labels" / f"{index:06d}.json").read_text())
+        record = json.loads((tmp_path / "set" / "labels" / image_name(index, "json")).read_text())
         mask = read_png(tmp_path / "gh" / names.frame_file(names.MASKS, record["frame"]), np.uint16)
         marked += int((mask == NEIGHBOUR_FRUIT_ID).sum())
         labelled += sum(p["pixels"] for p in record["peppers"] if p["pepper_id"] is None)

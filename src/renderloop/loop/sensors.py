@@ -165,7 +165,7 @@ class _Renderers:
         if hasattr(self, "local"):
             frame, depth, rgb = self.local.images(index, pose, motion)
             images = self.images[index] = stored_images(frame, depth, rgb)
-            for image in images.values():  # read by the encoder while the frame's consumers read them too
+            for image in images.values():  # read by the encoder and the perception thread at once: nobody writes them
                 image.flags.writeable = False
             if not hasattr(self, "encoder"):
                 self.pending[index] = (index, None, frame.timings)  # the frame's files are encoded if they are asked for
