@@ -71,6 +71,24 @@ def test_pepper_plants_have_60_to_200_leaves_of_6_to_20_cm_inside_their_box(pepp
     assert any(leaf.template >= 8 for leaf in leaves) and any(leaf.dust for leaf in leaves)  # a few damaged, a few dusty
 
 
+def test_a_leaf_tint_lightens_each_plants_leaves_towards_yellow_green_and_moves_no_leaf(pepper_scene):
+    config, scene = pepper_scene
+    data = config.model_dump(mode="json")
+    data["plants"]["pepper_style"]["leaf_tint"] = [0.0, 1.0]
+    tinted = generate_scene(Config.model_validate(data))
+    shape = ("base", "direction", "up", "length", "width", "template", "dust")
+    tints = []
+    for plain, light in zip(scene.plants, tinted.plants):
+        assert [[getattr(leaf, f) for f in shape] for leaf in plain.leaves] == [[getattr(leaf, f) for f in shape] for leaf in light.leaves]
+        before, after = (np.array([leaf.rgb for leaf in plant.leaves]) for plant in (plain, light))
+        # each plant is tinted as a whole: every leaf's red rises over its green by one factor for its plant
+        ratio = (after[:, 0] / after[:, 1]) / (before[:, 0] / before[:, 1])
+        healthy = np.abs(before[:, 0] / before[:, 1] - 0.19 / 0.37) < 0.3  # not yellowed
+        tints.append(np.median(ratio[healthy]))
+        assert np.all(ratio[healthy] >= 1.0 - 1e-6)
+    assert max(tints) > 1.3 and max(tints) - min(tints) > 0.1  # drawn per plant: some far, some near
+
+
 def test_every_fruit_hangs_from_a_node_by_a_peduncle_and_has_a_calyx(pepper_scene):
     _, scene = pepper_scene
     for pepper in scene.peppers:

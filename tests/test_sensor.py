@@ -15,6 +15,7 @@ from renderloop.render.stage import run_render
 from renderloop.rundir import files, names
 
 IDEAL = SensorConfig(enabled=True, exposure_target=(0.18, 0.18), gain=(1.0, 1.0), white_balance_error=(0.0, 0.0),
+                     white_balance_warmth=(0.0, 0.0),
                      vignetting=(0.0, 0.0), defocus=(0.0, 0.0), shot_noise=(0.0, 0.0), read_noise=(0.0, 0.0),
                      sharpen=(0.0, 0.0), jpeg_quality=(100.0, 100.0))
 
@@ -38,6 +39,15 @@ def test_auto_exposure_brings_a_dark_frame_up_to_its_target_within_its_gain():
     assert abs(metered(srgb_to_linear(exposed)) - 0.18) < 0.01
     capped = sensor_rgb(dark, _depth(), IDEAL.model_copy(update={"gain": (0.5, 2.0)}), np.random.default_rng(0))
     assert metered(srgb_to_linear(capped)) < 0.05  # the gain it may not exceed leaves it dark
+
+
+def test_a_misjudged_colour_temperature_turns_a_grey_frame_warm_or_cool_and_leaves_green_alone():
+    grey = _flat(0.18)
+    warm, cool = (srgb_to_linear(sensor_rgb(grey, _depth(), IDEAL.model_copy(update={"white_balance_warmth": (w, w)}),
+                                            np.random.default_rng(0))).mean(axis=(0, 1)) for w in (0.4, -0.4))
+    assert warm[0] > 1.15 * warm[1] > 1.15 * warm[2]
+    assert cool[2] > 1.15 * cool[1] > 1.15 * cool[0]
+    assert abs(warm[1] - cool[1]) < 0.01
 
 
 def test_the_gain_makes_dark_regions_noisier_than_bright_ones():

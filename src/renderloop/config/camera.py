@@ -22,6 +22,9 @@ class SensorConfig(Strict):
         (0.12, 0.22), description="Centre-weighted mean linear luminance auto exposure aims for (0.18: mid grey).")
     gain: Range(0.01, 100.0) = Field((0.5, 16.0), description="Smallest and largest gain auto exposure may set.")
     white_balance_error: Range(0.0, 0.5) = Field((0.0, 0.04), description="Sigma of each channel's white-balance gain error.")
+    white_balance_warmth: Range(-1.0, 1.0) = Field(
+        (-0.25, 0.25), description="Auto white balance misjudging the light's colour temperature: log of the red gain "
+        "over the blue gain (red times e^(w/2), blue times e^(-w/2)); > 0 warm, < 0 cool.")
     vignetting: Range(0.0, 1.0) = Field((0.05, 0.3), description="Share of light lost in the image corners.")
     focus_distance: Range(0.05, 100.0) = Field((0.6, 1.2), description="Distance the fixed-focus lens is sharp at, m.")
     defocus: Range(0.0, 20.0) = Field((0.0, 1.5), description="Blur radius per 1/m away from focus, px m.")

@@ -165,6 +165,9 @@ class PepperStyleConfig(Strict):
         (0.07, 0.17), description="Leaf blade length range, m (the petiole adds a quarter of it).")
     leaf_width_ratio: tuple[Real(0.05, 2.0), Real(0.05, 2.0)] = Field(
         (0.45, 0.6), description="Leaf blade width over its length, range.")
+    leaf_tint: tuple[Fraction, Fraction] = Field(
+        (0.0, 0.0), description="Range of how far a plant's healthy leaves go from dark green to a light yellow-green, "
+        "0-1, drawn per plant (cultivar, nutrition, light); `renderloop dataset` draws from 0-1.")
     yellowed: Fraction = Field(0.05, description="Share of leaves yellowed with age, 0-1.")
     damaged: Fraction = Field(0.06, description="Share of leaves with a torn edge or an eaten hole, 0-1.")
     dusty: Fraction = Field(0.1, description="Share of leaves under a grey film of dust or spray residue, 0-1.")
@@ -174,7 +177,7 @@ class PepperStyleConfig(Strict):
 
     @model_validator(mode="after")
     def _ranges(self) -> PepperStyleConfig:
-        for name in ("leaves", "leaf_length", "leaf_width_ratio"):
+        for name in ("leaves", "leaf_length", "leaf_width_ratio", "leaf_tint"):
             ordered_range(getattr(self, name), name)
         return self
 

@@ -45,6 +45,9 @@ CLUTTER_STREAM = 0xC1A7
 JPEG_QUALITY = 95
 MANIFEST = "dataset.json"
 PREVIEW = "preview.png"
+# The colour sensor of training views: the run's camera with its white balance misjudged twice as far either way,
+# so the detector meets warm and cool casts wider than a camera's nominal ones (docs/stages/perception.md)
+DATASET_SENSOR = SensorConfig(enabled=True, white_balance_warmth=(-0.5, 0.5))
 
 Rendered = list[tuple[int, bytes, dict]]
 Progress = Callable[[int, int], None]
@@ -95,7 +98,7 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
             rgb = frame.rgb
             sensor = np.random.default_rng(np.random.SeedSequence([spec.seed, COLOUR_SENSOR_STREAM, index]))
             if spec.sensor >= 1 or (spec.sensor > 0 and sensor.random() < spec.sensor):  # a share of 1 draws nothing
-                rgb = sensor_rgb(rgb, frame.depth, SensorConfig(enabled=True), sensor)
+                rgb = sensor_rgb(rgb, frame.depth, DATASET_SENSOR, sensor)
                 record["sensor"] = True
             out.append((index, jpeg_bytes(rgb), record))
     return out

@@ -24,11 +24,15 @@ from renderloop.scene.generate import generate_scene
 from renderloop.scene.model import Scene
 
 SCENE_STREAM = 0xDA7A
-FORMAT_VERSION = 2  # 2: the neighbouring rows' plants bear their fruit, labelled (1 drew them without): not resumable into 1
+# 2: the neighbouring rows' plants bear their fruit, labelled (1 drew them without); 3: 'pepper' and 'highwire'
+# leaves tinted per plant (DATASET_LEAF_TINT), the sensor's white balance misjudged (build.DATASET_SENSOR). A set
+# is resumed only by the format it was made with.
+FORMAT_VERSION = 3
 MAX_TRIES = 20
 STYLES = ("simple", "pepper", "highwire")
 ENVIRONMENTS = ("plain", "film")
 HIGHWIRE_HEIGHT = (1.3, 1.9)  # m: the canopy of a 'highwire' scene's plants, under the room's 3.5 m
+DATASET_LEAF_TINT = (0.0, 1.0)  # pepper_style.leaf_tint: dark green crops to light yellow-green ones
 CLOSE_NEAR_CLIP = 0.05  # m: the camera's near clip when views come as close as a hand's breadth
 
 
@@ -97,6 +101,7 @@ def _scene_overrides(rng: np.random.Generator, spec: DatasetSpec) -> dict:
             "leaves": (leaves_low, leaves_low + int(rng.integers(8, 30))),
             "leaf_length": (leaf_low, leaf_low + float(rng.uniform(0.03, 0.07))),
             "flowers": (0, int(rng.integers(1, 7))),
+            "pepper_style": {"leaf_tint": DATASET_LEAF_TINT},
             "peppers": {
                 "per_side": (1, int(rng.integers(2, 6))),
                 "length": (length_low, length_low + float(rng.uniform(0.01, 0.035))),

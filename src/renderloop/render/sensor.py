@@ -2,10 +2,11 @@
 
 A real scan camera in a greenhouse looks at dark foliage in front of a bright film wall.
 Its auto exposure meters the frame (centre-weighted) and sets a gain that brings the
-foliage up, so the background clips white; its auto white balance is off by a few per
-cent; the small sensor adds shot noise (that the gain amplifies, so dark regions are
-noisy) and read noise; the cheap lens darkens the corners (vignetting) and blurs what
-lies far from its fixed focus; the ISP sharpens, and the stream is often JPEG-compressed.
+foliage up, so the background clips white; its auto white balance misjudges the light's
+colour temperature (too warm or too cool) and is off by a few per cent more; the small
+sensor adds shot noise (that the gain amplifies, so dark regions are noisy) and read
+noise; the cheap lens darkens the corners (vignetting) and blurs what lies far from its
+fixed focus; the ISP sharpens, and the stream is often JPEG-compressed.
 `sensor_rgb` applies these in that order to the ideal sRGB frame, in linear light; with
 Cycles that frame is first rendered again blurred by the camera's motion over the exposure
 (`render/motion.py`, `CyclesRenderer.render_blurred`), the raster backend has no blur.
@@ -90,6 +91,8 @@ def sensor_rgb(rgb: np.ndarray, depth: np.ndarray, settings: SensorConfig, rng: 
     """The frame the camera would deliver for the ideal sRGB `rgb` (uint8) with planar `depth` (m, 0 = no return)."""
     linear = srgb_to_linear(rgb)
     balance = 1.0 + rng.normal(0.0, _draw(rng, settings.white_balance_error), 3)
+    warmth = _draw(rng, settings.white_balance_warmth)  # most of an auto white balance's error lies on the daylight axis
+    balance = balance * np.exp([warmth / 2, 0.0, -warmth / 2])
     linear = linear * (balance / balance[1]).astype(np.float32)  # a white-balance error relative to green
     target = _draw(rng, settings.exposure_target)
     gain = float(np.clip(target / max(metered(linear), 1e-6), settings.gain[0], settings.gain[1]))

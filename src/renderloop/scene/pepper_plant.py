@@ -31,9 +31,10 @@ from renderloop.scene.plant import PlantGrower, _round, _unit, place_fruit
 from renderloop.scene.plant_meshes import HEALTHY_SHAPES, LEAF_SHAPES, PEPPER_SEPALS, leaf_template, leaf_transform
 
 # Streams of the plant's seed, one per kind of draw: more leaves never move a branch.
-SKELETON_STREAM, FRUIT_STREAM, LEAF_STREAM, FLOWER_STREAM = 0x51, 0x52, 0x53, 0x54
+SKELETON_STREAM, FRUIT_STREAM, LEAF_STREAM, FLOWER_STREAM, TINT_STREAM = 0x51, 0x52, 0x53, 0x54, 0x55
 
 LEAF_RGB = (0.19, 0.37, 0.09)  # a healthy leaf's colour before its own variation, sRGB
+LIGHT_LEAF_RGB = (0.45, 0.52, 0.15)  # a light yellow-green crop's (pepper_style.leaf_tint 1), sRGB
 YELLOWED_RGB = (0.62, 0.58, 0.16)  # where an ageing leaf's colour goes, sRGB
 PEDUNCLE_RADIUS = 0.0035  # m
 BREAKING = 0.25  # share of coloured fruit still turning (the breaker stage: green, brown and their colour)
@@ -236,8 +237,10 @@ class PepperPlantGrower:
 
     # leaves and flowers ------------------------------------------------------------------------
 
-    def grow_leaves(self, rng: np.random.Generator) -> list[Leaf]:
+    def grow_leaves(self, rng: np.random.Generator, tint: float = 0.0) -> list[Leaf]:
+        """The plant's leaves; `tint` takes its healthy colour that share of the way to LIGHT_LEAF_RGB."""
         style = self.config.pepper_style
+        healthy = np.array(LEAF_RGB) + (np.array(LIGHT_LEAF_RGB) - np.array(LEAF_RGB)) * tint
         leafy = self._leafy()
         starts = np.array([start for start, _, _ in leafy])
         ends = np.array([end for _, end, _ in leafy])
@@ -268,7 +271,7 @@ class PepperPlantGrower:
                 transform = leaf_transform(leaf)
                 blade = leaf_template(template).vertices @ transform[:3, :3].T + transform[:3, 3]
                 if self._inside(blade, 0.0) and self._clear_of_fruit(blade) and self._out_of_windows(blade):
-                    rgb = np.array(LEAF_RGB) * rng.lognormal(0.0, 0.12) * rng.uniform(0.9, 1.1, size=3)
+                    rgb = healthy * rng.lognormal(0.0, 0.12) * rng.uniform(0.9, 1.1, size=3)
                     if rng.random() < style.yellowed:
                         rgb = rgb + (np.array(YELLOWED_RGB) - rgb) * rng.uniform(0.4, 0.9)
                     dust = _round(rng.uniform(0.3, 0.8)) if rng.random() < style.dusty else None
@@ -322,7 +325,8 @@ def grow_pepper_plant(
     plant = grower_class(grower, placed)
     plant.grow_skeleton(_stream(rng, SKELETON_STREAM))
     peppers = plant.hang_fruit(_stream(rng, FRUIT_STREAM))
-    leaves = plant.grow_leaves(_stream(rng, LEAF_STREAM))
+    tint = _stream(rng, TINT_STREAM).uniform(*config.pepper_style.leaf_tint)
+    leaves = plant.grow_leaves(_stream(rng, LEAF_STREAM), tint)
     flowers = plant.grow_flowers(_stream(rng, FLOWER_STREAM))
     stem, branches = plant.branches()
     return Plant(
