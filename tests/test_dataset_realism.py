@@ -14,6 +14,7 @@ from renderloop.dataset.clutter import PEPPER_CLEARANCE, clutter_objects, standi
 from renderloop.dataset.scenes import HIGHWIRE_HEIGHT, DatasetSpec, dataset_scene
 from renderloop.dataset.views import CLOSE_DISTANCE, _through, close_view, random_view
 from renderloop.errors import UserError
+from renderloop.render.camera import Intrinsics
 from renderloop.scene.objects import Box
 
 REAL = DatasetSpec(seed=21, styles=("simple", "pepper"), environments=("plain", "film"), clutter=True, close=0.5, sensor=0.5)
@@ -74,14 +75,18 @@ def test_a_segment_through_a_box_meets_it_and_one_beside_it_does_not():
     assert _through(np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.1, 1.0]), board)  # starts inside
 
 
-def test_close_views_look_at_a_fruit_from_a_hands_breadth_to_half_a_metre_never_through_a_board():
-    _, scene = dataset_scene(DatasetSpec(seed=4), 1)
+def test_close_views_look_at_a_fruit_from_a_hands_breadth_to_half_a_metre_never_through_a_board_or_cutting_one():
+    config, scene = dataset_scene(DatasetSpec(seed=4, close=1.0), 1)
     rng = np.random.default_rng(7)
     boards = standing_boards(scene, np.random.default_rng(3)) + [Box("wall", (-1.0, 0.0, 1.0), (0.01, 3.0, 1.0))]
-    centres = np.array([p.center for p in scene.peppers])
-    for _ in range(100):
-        pose = close_view(scene, rng, boards)
+    centres, radii = np.array([p.center for p in scene.peppers]), np.array([p.radius for p in scene.peppers])
+    reach = Intrinsics.from_config(config.camera).corner_range(config.camera.clip[0])
+    assert 1.1 * config.camera.clip[0] < reach < 1.3 * config.camera.clip[0]  # 57 degrees wide, 4:3
+    for _ in range(200):  # 2 % of them cut a fruit when the clip's reach is not kept clear
+        pose = close_view(scene, rng, boards, reach)
         camera = pose[:3, 3]
+        # no fruit reaches the near clip plane, which would cut it open (its inside rendered black)
+        assert np.all(np.linalg.norm(centres - camera, axis=1) >= radii + reach)
         local = (centres - camera) @ pose[:3, :3]  # the fruit in the optical frame
         near = np.linalg.norm(centres - camera, axis=1)
         ahead = np.abs(local[:, :2]).max(axis=1) < 0.5 * local[:, 2]  # within about 27 degrees of the optical axis

@@ -77,8 +77,9 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
     clutter_rng = np.random.default_rng(np.random.SeedSequence([spec.seed, CLUTTER_STREAM, scene_index]))
     boards = standing_boards(scene, clutter_rng) if spec.clutter else []
     rng = np.random.default_rng(np.random.SeedSequence([spec.seed, VIEW_STREAM, scene_index]))
+    reach = intrinsics.corner_range(config.camera.clip[0])
     # all drawn, so a view never depends on which are done
-    poses = [close_view(scene, rng, boards) if spec.close > 0 and rng.random() < spec.close
+    poses = [close_view(scene, rng, boards, reach) if spec.close > 0 and rng.random() < spec.close
              else random_view(scene, rng, spec.distance, boards) for _ in range(spec.views_per_scene)]
     peppers = {pepper.id: pepper for pepper in scene.peppers}
     meshes, neighbours = pepper_vertices(scene), neighbour_fruit(scene.environment)

@@ -25,8 +25,8 @@ from renderloop.scene.model import Scene
 
 SCENE_STREAM = 0xDA7A
 # 2: the neighbouring rows' plants bear their fruit, labelled (1 drew them without); 3: 'pepper' and 'highwire'
-# leaves tinted per plant (DATASET_LEAF_TINT), the sensor's white balance misjudged (build.DATASET_SENSOR). A set
-# is resumed only by the format it was made with.
+# leaves tinted per plant (DATASET_LEAF_TINT), the sensor's white balance misjudged (build.DATASET_SENSOR), close
+# views clear of cutting a fruit with the near clip. A set is resumed only by the format it was made with.
 FORMAT_VERSION = 3
 MAX_TRIES = 20
 STYLES = ("simple", "pepper", "highwire")

@@ -105,9 +105,13 @@ def random_view(scene: Scene, rng: np.random.Generator, distance_range: tuple[fl
     raise RuntimeError("no unobstructed camera position found around the plants")
 
 
-def close_view(scene: Scene, rng: np.random.Generator, obstacles: Sequence[Box] = ()) -> np.ndarray:
+def close_view(scene: Scene, rng: np.random.Generator, obstacles: Sequence[Box] = (), clip_reach: float = 0.0) -> np.ndarray:
     """T_world_optical of a view of one random fruit from close by (CLOSE_DISTANCE); the camera may be among the
-    plant's leaves, never in a table, an obstacle or looking through one."""
+    plant's leaves, never in a table, an obstacle or looking through one, nor within `clip_reach` m (how far the near
+    clip plane reaches from the camera) of any fruit's bounding sphere: the clip would cut that fruit open, and its
+    inside would be rendered."""
+    centres = np.array([pepper.center for pepper in scene.peppers])
+    keep_out = np.array([pepper.radius for pepper in scene.peppers]) + clip_reach
     for _ in range(MAX_TRIES):
         pepper = scene.peppers[int(rng.integers(len(scene.peppers)))]
         plant = next(p for p in scene.plants if p.id == pepper.plant)
@@ -119,7 +123,8 @@ def close_view(scene: Scene, rng: np.random.Generator, obstacles: Sequence[Box] 
         camera = center + distance * np.array([math.cos(elevation) * math.cos(heading),
                                                math.cos(elevation) * math.sin(heading), math.sin(elevation)])
         target = center + rng.uniform(-CLOSE_AIM, CLOSE_AIM, 3) * distance
-        if _on_table(scene, camera) or camera[2] < CLEARANCE or any(_through(camera, target, o) for o in obstacles):
+        if _on_table(scene, camera) or camera[2] < CLEARANCE or any(_through(camera, target, o) for o in obstacles) \
+                or np.any(np.linalg.norm(centres - camera, axis=1) < keep_out):
             continue
         return _rolled(camera, target, rng.uniform(-CLOSE_ROLL, CLOSE_ROLL))
     raise RuntimeError("no unobstructed close view of a fruit found")

@@ -42,6 +42,11 @@ class Intrinsics:
         """Vertical field of view, what MuJoCo's camera takes (square pixels, centred principal point)."""
         return float(np.degrees(2 * np.arctan(self.height / 2 / self.fy)))
 
+    def corner_range(self, depth: float) -> float:
+        """How far from the camera an image corner's ray runs before it reaches planar `depth`: the farthest point
+        of the clip plane at that depth."""
+        return float(depth * np.hypot(np.hypot(1.0, self.width / 2 / self.fx), self.height / 2 / self.fy))
+
     def project(self, points: np.ndarray) -> np.ndarray:
         """Optical-frame points (N, 3) to pixel coordinates (N, 2)."""
         points = np.atleast_2d(points)
