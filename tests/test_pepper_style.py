@@ -13,6 +13,7 @@ from renderloop.io.atomic import dumps_json
 from renderloop.scene.generate import generate_scene
 from renderloop.scene.model import Scene
 from renderloop.scene.objects import greenhouse_objects
+from renderloop.scene.pepper_plant import LEAF_RGB
 from renderloop.scene.plant_meshes import LEAF_SHAPES, plant_meshes
 
 # sha256 of scene.json written by the code before the 'pepper' style existed (2026-11-23), same seeds.
@@ -83,7 +84,7 @@ def test_a_leaf_tint_lightens_each_plants_leaves_towards_yellow_green_and_moves_
         before, after = (np.array([leaf.rgb for leaf in plant.leaves]) for plant in (plain, light))
         # each plant is tinted as a whole: every leaf's red rises over its green by one factor for its plant
         ratio = (after[:, 0] / after[:, 1]) / (before[:, 0] / before[:, 1])
-        healthy = np.abs(before[:, 0] / before[:, 1] - 0.19 / 0.37) < 0.3  # not yellowed
+        healthy = np.abs(before[:, 0] / before[:, 1] - LEAF_RGB[0] / LEAF_RGB[1]) < 0.3  # not yellowed
         tints.append(np.median(ratio[healthy]))
         assert np.all(ratio[healthy] >= 1.0 - 1e-6)
     assert max(tints) > 1.3 and max(tints) - min(tints) > 0.1  # drawn per plant: some far, some near

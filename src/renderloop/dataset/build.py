@@ -25,12 +25,11 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from renderloop.config import SensorConfig
 from renderloop.dataset.clutter import clutter_objects, standing_boards
 from renderloop.dataset.coco import write_coco
 from renderloop.dataset.labels import neighbour_fruit_boxes, pepper_boxes, pepper_vertices
 from renderloop.dataset.preview import draw_preview
-from renderloop.dataset.scenes import DatasetSpec, dataset_scene
+from renderloop.dataset.scenes import DATASET_SENSOR, DatasetSpec, dataset_scene
 from renderloop.dataset.views import close_view, random_view
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_bytes, write_json
@@ -45,9 +44,6 @@ CLUTTER_STREAM = 0xC1A7
 JPEG_QUALITY = 95
 MANIFEST = "dataset.json"
 PREVIEW = "preview.png"
-# The colour sensor of training views: the run's camera with its white balance misjudged twice as far either way,
-# so the detector meets warm and cool casts wider than a camera's nominal ones (docs/stages/perception.md)
-DATASET_SENSOR = SensorConfig(enabled=True, white_balance_warmth=(-0.5, 0.5))
 
 Rendered = list[tuple[int, bytes, dict]]
 Progress = Callable[[int, int], None]

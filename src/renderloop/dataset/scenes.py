@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from renderloop.config import Config, deep_merge, preset_overrides, validate
+from renderloop.config import Config, SensorConfig, deep_merge, preset_overrides, validate
 from renderloop.dataset.views import DISTANCE
 from renderloop.errors import UserError
 from renderloop.scene.generate import generate_scene
@@ -25,7 +25,7 @@ from renderloop.scene.model import Scene
 
 SCENE_STREAM = 0xDA7A
 # 2: the neighbouring rows' plants bear their fruit, labelled (1 drew them without); 3: 'pepper' and 'highwire'
-# leaves tinted per plant (DATASET_LEAF_TINT), the sensor's white balance misjudged (build.DATASET_SENSOR), close
+# leaves tinted per plant (DATASET_LEAF_TINT), the sensor's white balance misjudged (DATASET_SENSOR), close
 # views clear of cutting a fruit with the near clip. A set is resumed only by the format it was made with.
 FORMAT_VERSION = 3
 MAX_TRIES = 20
@@ -33,6 +33,9 @@ STYLES = ("simple", "pepper", "highwire")
 ENVIRONMENTS = ("plain", "film")
 HIGHWIRE_HEIGHT = (1.3, 1.9)  # m: the canopy of a 'highwire' scene's plants, under the room's 3.5 m
 DATASET_LEAF_TINT = (0.0, 1.0)  # pepper_style.leaf_tint: dark green crops to light yellow-green ones
+# The colour sensor of training views: the run's camera with its white balance misjudged twice as far either way,
+# so the detector meets warm and cool casts wider than a camera's nominal ones (docs/stages/perception.md)
+DATASET_SENSOR = SensorConfig(enabled=True, white_balance_warmth=(-0.5, 0.5))
 CLOSE_NEAR_CLIP = 0.05  # m: the camera's near clip when views come as close as a hand's breadth
 
 
@@ -47,7 +50,7 @@ class DatasetSpec:
     samples: tuple[int, ...] = (2, 4, 8)  # path-tracing noise levels around the run's default, after denoising
     val_every: int = 10  # every tenth scene is held out for validation
     distance: tuple[float, float] = DISTANCE  # camera to plant axis, m: a close set adds the large fruit of a scan
-    sensor: float = 0.0  # share of views through the colour-sensor model, its settings drawn from SensorConfig's ranges
+    sensor: float = 0.0  # share of views through the colour-sensor model, its settings drawn from DATASET_SENSOR's ranges
     styles: tuple[str, ...] = ("simple",)  # plant styles (plants.style) a scene draws from, equally
     environments: tuple[str, ...] = ("plain",)  # surroundings (greenhouse.environment.kind) a scene draws from, equally
     clutter: bool = False  # distractors, mats and boards that are not peppers (dataset/clutter.py) in every scene
