@@ -175,6 +175,26 @@ def test_other_bad_input(monkeypatch, capsys, tmp_path: Path):
     assert not any(tmp_path.glob("[abc]"))
 
 
+def test_a_training_stack_that_is_missing_or_fails_to_load_is_named_in_one_line(monkeypatch, capsys, tmp_path: Path):
+    import importlib.abc
+
+    class Broken(importlib.abc.MetaPathFinder):  # torchvision's compiled ops failing to load raise an ImportError with no name
+        def find_spec(self, name, path, target=None):
+            if name == "renderloop.perception.training.train":
+                raise ImportError("libtorchvision.so: undefined symbol")
+
+    monkeypatch.delitem(sys.modules, "renderloop.perception.training.train", raising=False)
+    monkeypatch.setattr(sys, "meta_path", [Broken(), *sys.meta_path])
+    code, _, stderr = cli(monkeypatch, capsys, "train", str(tmp_path), "--out", str(tmp_path / "m.onnx"))
+    assert code == 2 and stderr.count("\n") == 1
+    assert "train extra" in stderr and "(libtorchvision.so: undefined symbol)" in stderr
+
+    monkeypatch.setitem(sys.modules, "renderloop.perception.training.train", None)  # not importable: named
+    code, _, stderr = cli(monkeypatch, capsys, "train", str(tmp_path), "--out", str(tmp_path / "m.onnx"))
+    assert code == 2 and "(renderloop.perception.training.train is missing)" in stderr
+    assert not any(tmp_path.iterdir())
+
+
 def test_entry_point_reports_bad_input_without_traceback(tmp_path: Path):
     result = subprocess.run(
         [sys.executable, "-m", "renderloop", "scene", "--preset", "nope", "--out", str(tmp_path / "x")],

@@ -198,3 +198,17 @@ def test_files_that_are_not_detectors_are_refused(tmp_path: Path):
     torch.onnx.export(torch.nn.Linear(3, 2), (torch.zeros(1, 3),), str(other), input_names=["x"], dynamo=False)
     with pytest.raises(UserError, match="other.onnx: not a renderloop pepper detector"):
         Detector(other)
+
+
+def test_training_imports_nothing_of_the_simulator_so_it_runs_where_blender_and_mujoco_are_not_installed():
+    """A lab trains on a GPU machine that need not have bpy (Python 3.11 only) or MuJoCo: `renderloop train` reads
+    JPEGs and COCO, so its imports stop at torch, pydantic and pycocotools (docs/stages/perception.md)."""
+    import subprocess
+    import sys
+
+    simulator = ["bpy", "mujoco", "ray", "numba", "toppra", "rosbags", "rerun", "plotly", "OpenEXR", "sklearn", "scipy",
+                 "matplotlib"]
+    code = ("import sys, renderloop.cli, renderloop.perception.detector, renderloop.perception.training.train; "
+            f"print([m for m in {simulator!r} if m in sys.modules])")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert result.stdout.strip() == "[]"

@@ -211,7 +211,8 @@ def train(
     try:
         from renderloop.perception.training.train import TrainSettings, train_detector
     except ImportError as error:
-        raise UserError(f"training needs the train extra: pip install 'renderloop[train]' ({error.name} is missing)") from None
+        why = f"{error.name} is missing" if error.name else str(error)  # a module that is there but fails to load has no name
+        raise UserError(f"training needs the train extra: pip install 'renderloop[train]' ({why})") from None
     if device not in ("auto", "cpu", "cuda"):
         raise UserError(f"--device {device}: choose from auto, cpu, cuda")
     if init is not None and str(init) == "shipped":
