@@ -11,11 +11,14 @@ import pytest
 
 from renderloop.dataset.build import build_dataset
 from renderloop.dataset.clutter import PEPPER_CLEARANCE, clutter_objects, standing_boards
+from renderloop.dataset.picked import CRATE_WALL, picked_fruit
 from renderloop.dataset.scenes import HIGHWIRE_HEIGHT, DatasetSpec, dataset_scene
-from renderloop.dataset.views import CLOSE_DISTANCE, _through, close_view, random_view
+from renderloop.dataset.views import CLOSE_DISTANCE, _through, close_view, picked_view, random_view
 from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
+from renderloop.scene.model import MAX_PEPPER_ID
 from renderloop.scene.objects import Box
+from renderloop.scene.plant_meshes import pepper_mesh
 
 REAL = DatasetSpec(seed=21, styles=("simple", "pepper"), environments=("plain", "film"), clutter=True, close=0.5, sensor=0.5)
 
@@ -98,19 +101,82 @@ def test_close_views_look_at_a_fruit_from_a_hands_breadth_to_half_a_metre_never_
         assert not any(_through(camera, camera, board) for board in boards)  # a point segment: inside the board
 
 
-def test_a_cluttered_dataset_of_close_views_labels_peppers_only(tmp_path: Path):
-    spec = dataclasses.replace(REAL, width=64, height=48, views_per_scene=2, samples=(1,), val_every=2,
-                               styles=("pepper",), environments=("plain",), close=1.0)
-    assert build_dataset(tmp_path, 2, spec) == 2
+def _boxes_apart(a: Box, b: Box) -> bool:
+    return bool(np.any(np.abs(np.asarray(a.center) - b.center) >= np.asarray(a.half) + b.half))
+
+
+def test_picked_fruit_lie_every_way_up_in_crates_and_on_the_workstation_clear_of_each_other_and_the_plants():
+    axes, counts = [], []
+    for index in range(6):
+        config, scene = dataset_scene(DatasetSpec(seed=4, styles=("pepper",), picked=1.0), index)
+        boards = standing_boards(scene, np.random.default_rng(index))
+        picked = picked_fruit(scene, np.random.default_rng(index), config.plants.peppers, boards)
+        fruit = picked.fruit
+        ids = [p.id for p in fruit]
+        assert len(set(ids)) == len(ids) and min(ids) > max(p.id for p in scene.peppers) and max(ids) <= MAX_PEPPER_ID
+        centres, radii = np.array([p.center for p in fruit]), np.array([p.radius for p in fruit])
+        apart = np.linalg.norm(centres[:, None] - centres[None], axis=2) - radii[:, None] - radii[None]
+        assert apart[~np.eye(len(fruit), dtype=bool)].min() > 0  # no two fruit meet
+        solid = [Box("table", r.table.center, tuple(np.asarray(r.table.size) / 2)) for r in scene.rows] + boards
+        solid += [Box("plant", tuple((np.asarray(p.bounds.min) + p.bounds.max) / 2),
+                      tuple((np.asarray(p.bounds.max) - p.bounds.min) / 2)) for p in scene.plants]
+        room = np.array(scene.room[:2]) / 2
+        for crate in picked.crates:
+            assert all(_boxes_apart(crate, other) for other in solid)
+            assert np.all(np.abs(crate.center[:2]) + crate.half[:2] <= room)
+        top = scene.workstation.center[2] + scene.workstation.size[2] / 2
+        for pepper in fruit:  # on a crate's floor, on a fruit in it, or lying on the workstation's top
+            lowest = pepper_mesh(pepper).vertices[:, 2].min()
+            crate = next((c for c in picked.crates if np.all(np.abs(np.asarray(pepper.center[:2]) - c.center[:2])
+                                                              < np.asarray(c.half[:2]) - CRATE_WALL)), None)
+            if crate is None:
+                assert lowest == pytest.approx(top, abs=1e-6)
+            else:
+                assert lowest >= crate.center[2] - crate.half[2] + CRATE_WALL - 1e-6
+        axes += [p.axis for p in fruit]
+        counts.append(len(fruit))
+    assert min(counts) >= 1
+    upright = np.abs(np.array(axes)[:, 2])
+    assert (upright < 0.3).mean() > 0.2 and (upright > 0.7).mean() > 0.1  # on their sides, and stalk up or down
+
+
+def test_views_of_picked_fruit_look_down_at_one_from_outside_every_crate_and_keep_the_clip_clear():
+    config, scene = dataset_scene(DatasetSpec(seed=4, close=1.0, picked=1.0), 2)
+    boards = standing_boards(scene, np.random.default_rng(2))
+    picked = picked_fruit(scene, np.random.default_rng(2), config.plants.peppers, boards)
+    reach = Intrinsics.from_config(config.camera).corner_range(config.camera.clip[0])
+    every = [*scene.peppers, *picked.fruit]
+    centres, radii = np.array([p.center for p in every]), np.array([p.radius for p in every])
+    mine = np.array([p.center for p in picked.fruit])
+    rng = np.random.default_rng(9)
+    for _ in range(100):
+        pose = picked_view(scene, picked.fruit, rng, boards, picked.crates, reach)
+        camera = pose[:3, 3]
+        assert not any(_through(camera, camera, box) for box in [*boards, *picked.crates])
+        assert np.all(np.linalg.norm(centres - camera, axis=1) >= radii + reach)
+        local = (mine - camera) @ pose[:3, :3]
+        near = np.linalg.norm(mine - camera, axis=1)
+        assert np.any((np.abs(local[:, :2]).max(axis=1) < 0.5 * local[:, 2]) & (near <= CLOSE_DISTANCE[1] + 1e-9)
+                      & (mine[:, 2] < camera[2]))  # a picked fruit ahead, below the camera
+
+
+def test_a_cluttered_dataset_of_close_views_labels_peppers_and_picked_fruit_only(tmp_path: Path):
+    spec = dataclasses.replace(REAL, width=64, height=48, views_per_scene=4, samples=(1,), val_every=2,
+                               styles=("pepper",), environments=("plain",), close=1.0, picked=1.0)
+    assert build_dataset(tmp_path, 4, spec) == 4
     _, scene = dataset_scene(spec, 0)
     ids = {pepper.id for pepper in scene.peppers}
-    for name in ("000000.json", "000001.json"):
-        record = json.loads((tmp_path / "labels" / name).read_text())
-        assert record["peppers"] and {p["pepper_id"] for p in record["peppers"]} <= ids
+    seen = set()
+    for index in range(4):
+        record = json.loads((tmp_path / "labels" / f"{index:06d}.json").read_text())
+        seen |= {p["pepper_id"] for p in record["peppers"]}
+        assert all(p["label"] in ("ripe", "unripe") for p in record["peppers"])
+    assert seen & ids and seen - ids and min(seen - ids) > max(ids)  # the plants' fruit and picked ones above them
     coco = json.loads((tmp_path / "annotations" / "instances_train.json").read_text())
     assert coco["annotations"]
     manifest = json.loads((tmp_path / "dataset.json").read_text())
     assert manifest["clutter"] is True and manifest["close"] == 1.0 and manifest["styles"] == ["pepper"]
+    assert manifest["picked"] == 1.0
 
 
 def test_an_older_manifest_without_the_realism_fields_is_the_plain_dataset(tmp_path: Path):
@@ -118,7 +184,7 @@ def test_an_older_manifest_without_the_realism_fields_is_the_plain_dataset(tmp_p
     build_dataset(tmp_path, 1, tiny)
     manifest = tmp_path / "dataset.json"
     older = {k: v for k, v in json.loads(manifest.read_text()).items()
-             if k not in ("styles", "environments", "clutter", "close")} | {"sensor": False}
+             if k not in ("styles", "environments", "clutter", "close", "picked")} | {"sensor": False}
     manifest.write_text(json.dumps(older))
     assert build_dataset(tmp_path, 1, tiny) == 0
     with pytest.raises(UserError, match="other settings"):
@@ -128,6 +194,7 @@ def test_an_older_manifest_without_the_realism_fields_is_the_plain_dataset(tmp_p
 @pytest.mark.parametrize("change, words", [
     ({"styles": ("fern",)}, "--styles fern"), ({"environments": ()}, "--environments"),
     ({"styles": ("pepper", "pepper")}, "each once"), ({"close": 1.5}, "--close 1.5"), ({"sensor": -0.1}, "--sensor"),
+    ({"picked": 2.0}, "--picked 2.0: a share of the scenes"),
 ])
 def test_a_bad_dataset_choice_is_one_line_naming_it(change, words):
     with pytest.raises(UserError, match=words):

@@ -158,6 +158,8 @@ def dataset(
     clutter: Annotated[bool, typer.Option("--clutter/--no-clutter", help="Things that are not peppers in every scene: "
                                           "fruit-like shapes, cans, cartons, patterned mats and boards.")] = DatasetSpec.clutter,
     close: Annotated[float, typer.Option(min=0.0, max=1.0, help="Share of the views of one fruit from 0.12-0.5 m.")] = DatasetSpec.close,
+    picked: Annotated[float, typer.Option(min=0.0, max=1.0, help="Share of the scenes with crates and loose picked fruit, "
+                                          "labelled; half their close views look at one.")] = DatasetSpec.picked,
     workers: Workers = 1,
     executor: Executor = "local",
     address: Address = None,
@@ -167,7 +169,8 @@ def dataset(
     from renderloop.dataset.build import build_dataset
 
     spec = DatasetSpec(seed=seed, width=width, height=width * 3 // 4, views_per_scene=views_per_scene, distance=distance,
-                       sensor=sensor, styles=_names(styles), environments=_names(environments), clutter=clutter, close=close)
+                       sensor=sensor, styles=_names(styles), environments=_names(environments), clutter=clutter, close=close,
+                       picked=picked)
     with _progress_bar("dataset") as progress:
         made = build_dataset(out, images, spec, workers, executor, address, force, progress)
     typer.echo(f"dataset: rendered {made} images, {images} in {out}")

@@ -29,8 +29,9 @@ from renderloop.dataset.clutter import clutter_objects, standing_boards
 from renderloop.dataset.coco import write_coco
 from renderloop.dataset.labels import neighbour_fruit_boxes, pepper_boxes, pepper_vertices
 from renderloop.dataset.preview import draw_preview
-from renderloop.dataset.scenes import DATASET_SENSOR, DatasetSpec, dataset_scene
-from renderloop.dataset.views import close_view, random_view
+from renderloop.dataset.picked import picked_fruit
+from renderloop.dataset.scenes import DATASET_SENSOR, PICKED_VIEWS, DatasetSpec, dataset_scene
+from renderloop.dataset.views import close_view, picked_view, random_view
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_bytes, write_json
 from renderloop.render.camera import Intrinsics
@@ -38,9 +39,11 @@ from renderloop.render.executor import COLOUR_SENSOR_STREAM, ray_session, spawna
 from renderloop.render.sensor import sensor_rgb
 from renderloop.rundir import ownership
 from renderloop.scene.objects import greenhouse_objects, neighbour_fruit
+from renderloop.scene.plant_meshes import pepper_mesh
 
 VIEW_STREAM = 0x71E3
 CLUTTER_STREAM = 0xC1A7
+PICKED_STREAM = 0xF1C7
 JPEG_QUALITY = 95
 MANIFEST = "dataset.json"
 PREVIEW = "preview.png"
@@ -72,14 +75,27 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
     intrinsics = Intrinsics.from_config(config.camera)
     clutter_rng = np.random.default_rng(np.random.SeedSequence([spec.seed, CLUTTER_STREAM, scene_index]))
     boards = standing_boards(scene, clutter_rng) if spec.clutter else []
+    picked_rng = np.random.default_rng(np.random.SeedSequence([spec.seed, PICKED_STREAM, scene_index]))
+    picked = picked_fruit(scene, picked_rng, config.plants.peppers, boards) \
+        if spec.picked > 0 and picked_rng.random() < spec.picked else None
+    crates = list(picked.crates) if picked is not None else []
     rng = np.random.default_rng(np.random.SeedSequence([spec.seed, VIEW_STREAM, scene_index]))
     reach = intrinsics.corner_range(config.camera.clip[0])
-    # all drawn, so a view never depends on which are done
-    poses = [close_view(scene, rng, boards, reach) if spec.close > 0 and rng.random() < spec.close
-             else random_view(scene, rng, spec.distance, boards) for _ in range(spec.views_per_scene)]
-    peppers = {pepper.id: pepper for pepper in scene.peppers}
-    meshes, neighbours = pepper_vertices(scene), neighbour_fruit(scene.environment)
-    objects = greenhouse_objects(scene) + (clutter_objects(scene, clutter_rng, boards) if spec.clutter else [])
+
+    def draw_view() -> np.ndarray:
+        if spec.close > 0 and rng.random() < spec.close:
+            if picked is not None and picked.fruit and rng.random() < PICKED_VIEWS:  # drawn only where there are picked fruit
+                return picked_view(scene, picked.fruit, rng, boards, crates, reach)
+            return close_view(scene, rng, boards + crates, reach)
+        return random_view(scene, rng, spec.distance, boards + crates)
+
+    poses = [draw_view() for _ in range(spec.views_per_scene)]  # all drawn, so a view never depends on which are done
+    picked_fruits = picked.fruit if picked is not None else ()
+    peppers = {pepper.id: pepper for pepper in [*scene.peppers, *picked_fruits]}
+    meshes = pepper_vertices(scene) | {pepper.id: pepper_mesh(pepper).vertices for pepper in picked_fruits}
+    neighbours = neighbour_fruit(scene.environment)
+    objects = greenhouse_objects(scene) + (clutter_objects(scene, clutter_rng, boards, picked_fruits) if spec.clutter else []) \
+        + list(picked.objects if picked is not None else ())
     out = []
     with CyclesRenderer.from_objects(objects, config, intrinsics, scene.seed, scene.room, scene.environment) as renderer:
         for view in view_indices:

@@ -16,11 +16,12 @@ Numpy only: a dataset worker adds these to the scene's own object list.
 from __future__ import annotations
 
 import colorsys
+from collections.abc import Sequence
 
 import numpy as np
 
 from renderloop.scene.meshes import box, ellipsoid, tube
-from renderloop.scene.model import Scene
+from renderloop.scene.model import Pepper, Scene
 from renderloop.scene.objects import Box, COLUMN_SIDES, SceneObject
 
 __all__ = ["clutter_objects", "standing_boards", "DISTRACTORS", "PEPPER_CLEARANCE"]
@@ -130,10 +131,12 @@ def standing_boards(scene: Scene, rng: np.random.Generator) -> list[Box]:
     return boards
 
 
-def clutter_objects(scene: Scene, rng: np.random.Generator, boards: list[Box]) -> list[SceneObject]:
-    """The distractors and mats of one dataset scene, and the `boards` (from `standing_boards`) as objects."""
-    peppers = np.array([p.center for p in scene.peppers]).reshape(-1, 3)
-    radii = np.array([p.radius for p in scene.peppers])
+def clutter_objects(scene: Scene, rng: np.random.Generator, boards: list[Box], picked: Sequence[Pepper] = ()) -> list[SceneObject]:
+    """The distractors and mats of one dataset scene, and the `boards` (from `standing_boards`) as objects; the
+    distractors keep clear of the scene's fruit and of the `picked` ones."""
+    fruit = [*scene.peppers, *picked]
+    peppers = np.array([p.center for p in fruit]).reshape(-1, 3)
+    radii = np.array([p.radius for p in fruit])
     out = _mats(scene, rng)
     out += [SceneObject(board.name, mesh=board.mesh(), material="clutter_pattern", rgb=_colour(rng), alpha=float(rng.random()))
             for board in boards]

@@ -37,6 +37,7 @@ DATASET_LEAF_TINT = (0.0, 1.0)  # pepper_style.leaf_tint: dark green crops to li
 # so the detector meets warm and cool casts wider than a camera's nominal ones (docs/stages/perception.md)
 DATASET_SENSOR = SensorConfig(enabled=True, white_balance_warmth=(-0.5, 0.5))
 CLOSE_NEAR_CLIP = 0.05  # m: the camera's near clip when views come as close as a hand's breadth
+PICKED_VIEWS = 0.5  # share of a scene's close views that look at one of its picked fruit, where it has any
 
 
 @dataclass(frozen=True)
@@ -55,6 +56,7 @@ class DatasetSpec:
     environments: tuple[str, ...] = ("plain",)  # surroundings (greenhouse.environment.kind) a scene draws from, equally
     clutter: bool = False  # distractors, mats and boards that are not peppers (dataset/clutter.py) in every scene
     close: float = 0.0  # share of views of one fruit from 0.12-0.5 m (dataset/views.py close_view)
+    picked: float = 0.0  # share of scenes with crates and loose picked fruit (dataset/picked.py)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.distance[0] <= self.distance[1]:
@@ -63,15 +65,15 @@ class DatasetSpec:
             chosen = getattr(self, name)
             if not chosen or any(choice not in allowed for choice in chosen) or len(set(chosen)) != len(chosen):
                 raise UserError(f"--{name} {','.join(chosen)}: choose one or more of {', '.join(allowed)}, each once")
-        for name in ("sensor", "close"):
+        for name, of in (("sensor", "views"), ("close", "views"), ("picked", "scenes")):
             if not 0.0 <= getattr(self, name) <= 1.0:
-                raise UserError(f"--{name} {getattr(self, name)}: a share of the views, between 0 and 1")
+                raise UserError(f"--{name} {getattr(self, name)}: a share of the {of}, between 0 and 1")
 
     @classmethod
     def manifest_defaults(cls) -> dict:
         """Fields that a manifest of an older version may lack, with the value its images were made with."""
         return {"distance": list(DISTANCE), "sensor": 0.0, "styles": ["simple"], "environments": ["plain"],
-                "clutter": False, "close": 0.0}
+                "clutter": False, "close": 0.0, "picked": 0.0}
 
     def manifest(self) -> dict:
         return {"format_version": FORMAT_VERSION, **{key: list(v) if isinstance(v, tuple) else v for key, v in asdict(self).items()}}

@@ -6,7 +6,8 @@ tilting UAV gives its camera), so the detector meets fruit at every size, at the
 image edges and half hidden, never only centred. A view is redrawn when the camera
 would sit inside a plant's box, a table or below the table top, or inside or behind
 an obstacle (the training set's standing boards). Close views look at one fruit from
-a hand's breadth to half a metre, from any side, as a close scan or a photo does.
+a hand's breadth to half a metre, from any side, as a close scan or a photo does; views of picked fruit
+(dataset/picked.py) look down at one from around it, as at a crate or a table.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from renderloop.robot.kinematics import look_at
-from renderloop.scene.model import Scene
+from renderloop.scene.model import Pepper, Scene
 from renderloop.scene.objects import Box
 
 DISTANCE = (0.3, 1.2)  # m from the plant's axis, horizontal; drawn closer more often, as scans are
@@ -37,6 +38,7 @@ CLOSE_ELEVATION = math.radians(60.0)  # up to this far above (or a third of it b
 CLOSE_BEARING = math.radians(80.0)  # spread around the direction from the plant's axis out to the fruit
 CLOSE_ROLL = math.radians(35.0)
 CLOSE_AIM = 0.25  # of the distance: the aim point's spread about the fruit's centre
+PICKED_ELEVATION = (math.radians(20.0), math.radians(85.0))  # a picked fruit is seen from this far above it
 
 
 def _roll(angle: float) -> np.ndarray:
@@ -128,3 +130,42 @@ def close_view(scene: Scene, rng: np.random.Generator, obstacles: Sequence[Box] 
             continue
         return _rolled(camera, target, rng.uniform(-CLOSE_ROLL, CLOSE_ROLL))
     raise RuntimeError("no unobstructed close view of a fruit found")
+
+
+def _over_rim(camera: np.ndarray, center: np.ndarray, crate: Box) -> bool:
+    """Whether the sight line from a fruit at `center` to `camera` leaves `crate` through its open top (or the fruit
+    is not in it): a crate's walls hide the fruit in it from the side."""
+    low, high = np.asarray(crate.center) - crate.half, np.asarray(crate.center) + crate.half
+    if np.any(center[:2] < low[:2]) or np.any(center[:2] > high[:2]) or not low[2] <= center[2] <= high[2]:
+        return True
+    if camera[2] <= high[2]:
+        return False
+    xy = center[:2] + (high[2] - center[2]) / (camera[2] - center[2]) * (camera[:2] - center[:2])
+    return bool(np.all(xy > low[:2]) and np.all(xy < high[:2]))
+
+
+def picked_view(scene: Scene, fruit: Sequence[Pepper], rng: np.random.Generator, boards: Sequence[Box] = (),
+                crates: Sequence[Box] = (), clip_reach: float = 0.0) -> np.ndarray:
+    """T_world_optical of a view of one random picked fruit of `fruit` from CLOSE_DISTANCE, from any bearing and
+    PICKED_ELEVATION above it; the camera inside neither a plant's box, a table, the workstation, a board nor a
+    crate, looking at the fruit through neither a board nor its crate's wall, and clear of every fruit by
+    `clip_reach` as `close_view`'s is."""
+    every = [*scene.peppers, *fruit]
+    centres = np.array([pepper.center for pepper in every])
+    keep_out = np.array([pepper.radius for pepper in every]) + clip_reach
+    station = Box("workstation", scene.workstation.center, tuple(np.asarray(scene.workstation.size) / 2))
+    solid = [*boards, *crates, station]
+    for _ in range(MAX_TRIES):
+        center = np.asarray(fruit[int(rng.integers(len(fruit)))].center)
+        heading, elevation = rng.uniform(0.0, 2 * math.pi), rng.uniform(*PICKED_ELEVATION)
+        distance = rng.uniform(*CLOSE_DISTANCE)
+        camera = center + distance * np.array([math.cos(elevation) * math.cos(heading),
+                                               math.cos(elevation) * math.sin(heading), math.sin(elevation)])
+        target = center + rng.uniform(-CLOSE_AIM, CLOSE_AIM, 3) * distance
+        if _blocked(scene, camera) or any(_through(camera, camera, box) for box in solid) \
+                or any(_through(camera, target, board) for board in boards) \
+                or not all(_over_rim(camera, center, crate) for crate in crates) \
+                or np.any(np.linalg.norm(centres - camera, axis=1) < keep_out):
+            continue
+        return _rolled(camera, target, rng.uniform(-CLOSE_ROLL, CLOSE_ROLL))
+    raise RuntimeError("no unobstructed view of a picked fruit found")
