@@ -124,9 +124,9 @@ def standing_boards(scene: Scene, rng: np.random.Generator) -> list[Box]:
             if rng.random() < 0.5:  # across the room (normal along x) or along it
                 half = half[[1, 0, 2]]
             center = np.array([rng.uniform(-length / 2, length / 2), rng.uniform(-width / 2, width / 2), half[2]])
-            if all(np.any(np.abs(center - (np.asarray(p.bounds.min) + p.bounds.max) / 2)
-                          > half + (np.asarray(p.bounds.max) - p.bounds.min) / 2 + BOARD_GAP) for p in scene.plants):
-                boards.append(Box(f"clutter_board_{len(boards)}", tuple(center), tuple(half)))
+            board = Box(f"clutter_board_{len(boards)}", tuple(center), tuple(half))
+            if all(board.apart(Box.bounding("plant", p.bounds.min, p.bounds.max), BOARD_GAP) for p in scene.plants):
+                boards.append(board)
                 break
     return boards
 

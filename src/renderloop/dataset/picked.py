@@ -43,6 +43,7 @@ LYING_TILT = math.radians(25.0)  # a loose fruit's axis within this of level: it
 STALK = (0.01, 0.04)  # m: the cut stalk left on a picked fruit, along its axis from the calyx
 GAP = 0.004  # m between two fruit's bounding spheres
 AISLE_GAP = (0.1, 0.6)  # m from a table's side to a floor crate's
+CRATE_GAP = 0.05  # m between a crate and any other crate, table, plant's box or board
 MAX_TRIES = 60
 
 
@@ -143,18 +144,13 @@ def _crate_mesh(box: Box) -> meshes.Mesh:
     return meshes.merge([meshes.box(center, size) for center, size in panels])
 
 
-def _apart(a: Box, b: Box, gap: float = 0.05) -> bool:
-    return bool(np.any(np.abs(np.asarray(a.center) - b.center) > np.asarray(a.half) + b.half + gap))
-
-
-def _crate_place(scene: Scene, rng: np.random.Generator, half: np.ndarray, on_workstation: bool) -> np.ndarray | None:
-    """The centre of a crate of half size `half`: on the workstation's top, or on the floor beside a table."""
-    if on_workstation:
-        center, size = np.asarray(scene.workstation.center), np.asarray(scene.workstation.size)
-        room = size[:2] / 2 - half[:2]
+def _crate_place(scene: Scene, rng: np.random.Generator, half: np.ndarray, station: Box | None) -> np.ndarray | None:
+    """The centre of a crate of half size `half`: on the `station`'s top when given, else on the floor beside a table."""
+    if station is not None:
+        room = np.asarray(station.half[:2]) - half[:2]
         if np.any(room < 0):
             return None
-        return np.r_[center[:2] + rng.uniform(-room, room), center[2] + size[2] / 2 + half[2]]
+        return np.r_[np.asarray(station.center[:2]) + rng.uniform(-room, room), station.center[2] + station.half[2] + half[2]]
     row = scene.rows[int(rng.integers(len(scene.rows)))]
     (x, y, _), (sx, sy, _) = row.table.center, row.table.size
     side = rng.choice([-1.0, 1.0])
@@ -167,10 +163,9 @@ def picked_fruit(scene: Scene, rng: np.random.Generator, config: PepperConfig, o
     on from the scene's highest."""
     filler = _Filler(rng, config, max((p.id for p in scene.peppers), default=0) + 1)
     length, width, _ = scene.room
-    station = Box("workstation", scene.workstation.center, tuple(np.asarray(scene.workstation.size) / 2))
-    solid = [Box(f"table_{row.id}", row.table.center, tuple(np.asarray(row.table.size) / 2)) for row in scene.rows]
-    solid += [Box(f"plant_{p.id}", tuple((np.asarray(p.bounds.min) + p.bounds.max) / 2),
-                  tuple((np.asarray(p.bounds.max) - p.bounds.min) / 2)) for p in scene.plants]
+    station = Box.sized("workstation", scene.workstation.center, scene.workstation.size)
+    solid = [Box.sized(f"table_{row.id}", row.table.center, row.table.size) for row in scene.rows]
+    solid += [Box.bounding(f"plant_{p.id}", p.bounds.min, p.bounds.max) for p in scene.plants]
     solid += list(obstacles)
     crates: list[Box] = []
     for k in range(int(rng.integers(CRATES[0], CRATES[1] + 1))):
@@ -178,13 +173,13 @@ def picked_fruit(scene: Scene, rng: np.random.Generator, config: PepperConfig, o
             inner = np.array([rng.uniform(*span) for span in CRATE_INNER])
             half = inner / 2 + np.array([CRATE_WALL, CRATE_WALL, CRATE_WALL / 2])
             on_station = k == 0 and rng.random() < 0.5
-            center = _crate_place(scene, rng, half, on_station)
+            center = _crate_place(scene, rng, half, station if on_station else None)
             if center is None:
                 continue
             crate = Box(f"crate_{k}", tuple(center), tuple(half))
             others = [*crates, *solid] + ([] if on_station else [station])
             if np.all(np.abs(center[:2]) + half[:2] <= np.array([length, width]) / 2) \
-                    and all(_apart(crate, other) for other in others):
+                    and all(crate.apart(other, CRATE_GAP) for other in others):
                 crates.append(crate)
                 low = center - half + CRATE_WALL
                 filler.fill_crate(low, center + half - np.array([CRATE_WALL, CRATE_WALL, 0.0]))
@@ -196,7 +191,7 @@ def picked_fruit(scene: Scene, rng: np.random.Generator, config: PepperConfig, o
             room = np.asarray(station.half[:2]) - shape["radius"]
             center = np.r_[np.asarray(station.center[:2]) + rng.uniform(-room, room), station_top - shape["bottom"]]
             fruit = Box("fruit", tuple(center), (shape["radius"],) * 3)
-            if filler.clear(center, shape["radius"]) and all(_apart(fruit, crate, 0.0) for crate in crates):
+            if filler.clear(center, shape["radius"]) and all(fruit.apart(crate) for crate in crates):
                 filler.add(center, shape)
                 break
     colours = [CRATE_RGB[int(rng.integers(len(CRATE_RGB)))] for _ in crates]

@@ -153,7 +153,7 @@ def picked_view(scene: Scene, fruit: Sequence[Pepper], rng: np.random.Generator,
     every = [*scene.peppers, *fruit]
     centres = np.array([pepper.center for pepper in every])
     keep_out = np.array([pepper.radius for pepper in every]) + clip_reach
-    station = Box("workstation", scene.workstation.center, tuple(np.asarray(scene.workstation.size) / 2))
+    station = Box.sized("workstation", scene.workstation.center, scene.workstation.size)
     solid = [*boards, *crates, station]
     for _ in range(MAX_TRIES):
         center = np.asarray(fruit[int(rng.integers(len(fruit)))].center)

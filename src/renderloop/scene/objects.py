@@ -65,6 +65,21 @@ class Box:
     def mesh(self) -> Mesh:
         return meshes.box(self.center, 2 * np.asarray(self.half))
 
+    @classmethod
+    def sized(cls, name: str, center: Sequence[float], size: Sequence[float]) -> Box:
+        """The box of a table or workstation, given by centre and full size."""
+        return cls(name, tuple(float(c) for c in center), tuple(float(s) / 2 for s in size))
+
+    @classmethod
+    def bounding(cls, name: str, low: Sequence[float], high: Sequence[float]) -> Box:
+        """The box between two corners (a plant's bounds)."""
+        low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+        return cls(name, tuple((low + high) / 2), tuple((high - low) / 2))
+
+    def apart(self, other: Box, gap: float = 0.0) -> bool:
+        """Whether the two boxes are more than `gap` apart along some axis."""
+        return bool(np.any(np.abs(np.asarray(self.center) - other.center) > np.asarray(self.half) + other.half + gap))
+
 
 @dataclass(frozen=True)
 class Cylinder:
