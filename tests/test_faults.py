@@ -15,6 +15,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -61,31 +62,38 @@ def config(tmp_path_factory) -> Path:
     return path
 
 
+@dataclass(frozen=True)
+class Reference:
+    run_dir: Path  # an uninterrupted run of the config: copy it before changing it
+    files: dict[str, str]
+
+
 @pytest.fixture(scope="module")
-def reference(config: Path, tmp_path_factory) -> dict[str, str]:
-    """The files of an uninterrupted run of the same config."""
+def reference(config: Path, tmp_path_factory) -> Reference:
     out = tmp_path_factory.mktemp("faults") / "reference"
     subprocess.run(_command(config, out), check=True, capture_output=True)
-    return _files(out)
+    return Reference(out, _files(out))
 
 
-@pytest.mark.parametrize("stage", list(KILL_POINTS))
-def test_a_run_killed_in_any_stage_resumes_to_the_same_files(stage: str, config: Path, reference: dict[str, str], tmp_path: Path):
+def test_a_run_killed_in_each_stage_in_turn_resumes_to_the_same_files(config: Path, reference: Reference, tmp_path: Path):
+    """Killed in the first stage, started again and killed in the next, and so on: each start takes over what the
+    kill left (one run through the stages, where a fresh run killed in each would fly and render six times)."""
     out = tmp_path / "run"
-    delay = np.random.default_rng(sorted(KILL_POINTS).index(stage)).uniform(0.0, 0.05)  # a moment past the trigger
-    child = subprocess.Popen(_command(config, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        while child.poll() is None and not KILL_POINTS[stage](out):
-            time.sleep(0.002)
-        time.sleep(delay)
-        child.send_signal(signal.SIGKILL)
-    finally:
-        child.wait()
-    assert child.returncode == -signal.SIGKILL, f"the run ended before the kill point in {stage}"
-    assert _files(out) != reference  # it really stopped short
+    for stage, reached in KILL_POINTS.items():
+        delay = np.random.default_rng(list(KILL_POINTS).index(stage)).uniform(0.0, 0.05)  # a moment past the trigger
+        child = subprocess.Popen(_command(config, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            while child.poll() is None and not reached(out):
+                time.sleep(0.002)
+            time.sleep(delay)
+            child.send_signal(signal.SIGKILL)
+        finally:
+            child.wait()
+        assert child.returncode == -signal.SIGKILL, f"the run ended before the kill point in {stage}"
+        assert _files(out) != reference.files, f"killed in {stage}, it had written every file"
 
     subprocess.run(_command(config, out), check=True, capture_output=True)
-    assert _files(out) == reference
+    assert _files(out) == reference.files
     assert not [p for p in out.rglob("*") if p.name.endswith(".partial") or p.name.startswith(".detections.cache")]
     assert set(_files(out)) - {".renderloop.json"} <= set(read_ledger(out))  # every file is one renderloop knows it wrote
 
@@ -99,9 +107,9 @@ def _restricted(command: list[str]) -> list[str]:
     return ["setpriv", "--bounding-set=-dac_override,-dac_read_search", *command]
 
 
-def test_an_unwritable_run_directory_is_one_clear_line_and_keeps_its_files(config: Path, tmp_path: Path):
+def test_an_unwritable_run_directory_is_one_clear_line_and_keeps_its_files(config: Path, reference: Reference, tmp_path: Path):
     out = tmp_path / "run"
-    subprocess.run(_command(config, out), check=True, capture_output=True)
+    shutil.copytree(reference.run_dir, out)
     (out / "counts.json").unlink()  # the count stage must write again, into a directory it may not write
     before = _files(out)
     out.chmod(0o555)
@@ -115,7 +123,7 @@ def test_an_unwritable_run_directory_is_one_clear_line_and_keeps_its_files(confi
     assert _files(out) == before
 
 
-def test_a_full_disk_is_one_clear_line_and_every_file_left_is_complete(config: Path, reference: dict[str, str], tmp_path: Path):
+def test_a_full_disk_is_one_clear_line_and_every_file_left_is_complete(config: Path, reference: Reference, tmp_path: Path):
     """RLIMIT_FSIZE makes every write past the limit fail as ENOSPC would, with no root and no loop device."""
     import resource
 
@@ -127,6 +135,6 @@ def test_a_full_disk_is_one_clear_line_and_every_file_left_is_complete(config: P
     assert ended.returncode == 1 and "Traceback" not in ended.stderr
     assert last.startswith(f"renderloop: error: {out}/") and last.endswith("File too large")
     left = _files(out)
-    assert left and all(reference[name] == digest for name, digest in left.items())  # complete, or not there at all
+    assert left and all(reference.files[name] == digest for name, digest in left.items())  # complete, or not there at all
     subprocess.run(_command(config, out), check=True, capture_output=True)  # room again: the run finishes
-    assert _files(out) == reference
+    assert _files(out) == reference.files

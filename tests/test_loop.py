@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import fly_demo_raster
 
-from renderloop.config import Config
+from renderloop.config import Config, load_config
 from renderloop.counting.online import OnlineCounter
 from renderloop.errors import UserError
 from renderloop.loop.reference import quintic_bridge
@@ -178,11 +178,8 @@ def test_the_online_counter_counts_what_the_batch_count_counts(complete_run: Pat
 
 @pytest.mark.parametrize("workers", [2])
 def test_one_and_two_cycles_workers_render_the_same_online_frames(workers: int, tmp_path: Path):
-    data = Config.model_validate({}).model_dump(mode="json")
-    from renderloop.config import load_config
-
     data = load_config("demo").model_dump(mode="json")
-    data["camera"].update(width=64, height=48, rate_hz=0.1)
+    data["camera"].update(width=64, height=48, rate_hz=0.04)  # four frames of the 86 s scan
     data["renderer"]["backend"] = "cycles"
     config = Config.model_validate(data)
     one = tmp_path / "one"
@@ -204,7 +201,6 @@ def test_one_and_two_cycles_workers_render_the_same_online_frames(workers: int, 
 def test_online_cycles_sensor_frames_blurred_by_the_flown_motion_are_the_batch_renders(tmp_path: Path):
     """A sensor frame is asked for once its exposure has been flown and blurred over the motion the batch render
     reads from flight.csv: the online camera's files are the batch render's, byte for byte."""
-    from renderloop.config import load_config
     from renderloop.render.motion import FlownStates, frames_motion
     from renderloop.render.stage import run_render
     from renderloop.sim.stage import camera_frames, write_flight

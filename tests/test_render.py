@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -86,9 +86,15 @@ def test_pepper_pixels_are_on_the_pepper(raster):
     assert seen >= len(scene.peppers) // 2
 
 
+@pytest.fixture(scope="module")
+def flown_once(tmp_path_factory) -> Path:
+    return fly_demo_raster(tmp_path_factory.mktemp("flown") / "run")
+
+
 @pytest.fixture()
-def flown(tmp_path: Path) -> Path:
-    return fly_demo_raster(tmp_path / "run")
+def flown(flown_once: Path, tmp_path: Path) -> Path:
+    """A copy of the demo planned and flown, not yet rendered, for a test to change."""
+    return Path(shutil.copytree(flown_once, tmp_path / "run"))
 
 
 def _files(run_dir: Path) -> dict[str, bytes]:
@@ -119,7 +125,7 @@ def test_render_writes_the_run_files(flown: Path):
 def test_killed_render_resumes_to_the_same_files(flown: Path, tmp_path: Path):
     config = read_config(flown)
     reference = tmp_path / "reference"
-    os.system(f"cp -r {flown} {reference}")
+    shutil.copytree(flown, reference)
     run_render(reference, config)
 
     class Killed(Exception):
@@ -141,7 +147,7 @@ def test_two_workers_and_ray_give_the_same_files(flown: Path, tmp_path: Path):
     config = read_config(flown)
     copies = {name: tmp_path / name for name in ("one", "two", "ray")}
     for copy in copies.values():
-        os.system(f"cp -r {flown} {copy}")
+        shutil.copytree(flown, copy)
     run_render(copies["one"], config)
     run_render(copies["two"], config, workers=2)
     run_render(copies["ray"], config, workers=2, executor="ray")
