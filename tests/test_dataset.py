@@ -182,5 +182,8 @@ def test_a_dataset_of_other_settings_is_not_mixed(tmp_path: Path):
     older = {k: v for k, v in json.loads(manifest.read_text()).items() if k != "distance"}
     manifest.write_text(json.dumps(older))  # a dataset made before views had a range: the default one
     build_dataset(tmp_path, 1, TINY)
+    manifest.write_text(json.dumps({**older, "format_version": 2}))  # images of an older renderer: not mixed either
+    with pytest.raises(UserError, match=r"format 2, made by another renderloop \(this one renders format 3"):
+        build_dataset(tmp_path, 1, TINY)
     with pytest.raises(UserError, match="--images 0"):
         build_dataset(tmp_path, 0, TINY)

@@ -30,7 +30,7 @@ from renderloop.dataset.coco import write_coco
 from renderloop.dataset.labels import neighbour_fruit_boxes, pepper_boxes, pepper_vertices
 from renderloop.dataset.preview import draw_preview
 from renderloop.dataset.picked import picked_fruit
-from renderloop.dataset.scenes import DATASET_SENSOR, PICKED_VIEWS, DatasetSpec, dataset_scene
+from renderloop.dataset.scenes import DATASET_SENSOR, FORMAT_VERSION, PICKED_VIEWS, DatasetSpec, dataset_scene
 from renderloop.dataset.views import close_view, picked_view, random_view
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_bytes, write_json
@@ -138,6 +138,10 @@ def _check_spec(out: Path, spec: DatasetSpec, force: bool) -> None:
             recorded = {**spec.manifest_defaults(), **json.loads(path.read_text(encoding="utf-8"))}
         except (OSError, UnicodeDecodeError, json.JSONDecodeError, TypeError):
             recorded = None
+        made = recorded.get("format_version") if isinstance(recorded, dict) else None
+        if made != FORMAT_VERSION and isinstance(made, int):
+            raise UserError(f"{out}: holds a dataset of format {made}, made by another renderloop (this one renders format "
+                            f"{FORMAT_VERSION}, whose images differ); grow it with that version or use --force to replace it")
         if recorded != spec.manifest():
             raise UserError(f"{out}: holds a dataset of other settings (see {MANIFEST}); use --force to replace it")
     elif force:
