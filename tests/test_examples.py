@@ -20,9 +20,10 @@ PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 
-def python_blocks() -> list[tuple[str, str]]:
-    return [(f"{page.relative_to(ROOT)}#{number}", code) for page in PAGES
-            for number, code in enumerate(BLOCK.findall(page.read_text(encoding="utf-8")), start=1)]
+def python_blocks() -> list:
+    """Each block as a pytest parameter (name, code), its id the page and the block's number there."""
+    return [pytest.param(f"{page.relative_to(ROOT)}#{number}", code, id=f"{page.relative_to(ROOT)}#{number}")
+            for page in PAGES for number, code in enumerate(BLOCK.findall(page.read_text(encoding="utf-8")), start=1)]
 
 
 def run_python(arguments: list[str], folder: Path) -> subprocess.CompletedProcess:
@@ -33,10 +34,10 @@ def run_python(arguments: list[str], folder: Path) -> subprocess.CompletedProces
 
 def test_the_docs_show_python_to_run():
     """Guards the test below against a changed fence or page layout that would leave it nothing to check."""
-    assert any(name.startswith("docs/stages/loop.md") for name, _ in python_blocks())
+    assert any(block.values[0].startswith("docs/stages/loop.md") for block in python_blocks())
 
 
-@pytest.mark.parametrize(("name", "code"), python_blocks(), ids=[name for name, _ in python_blocks()])
+@pytest.mark.parametrize(("name", "code"), python_blocks())
 def test_every_python_block_of_the_docs_runs_as_shown(name, code, tmp_path):
     (tmp_path / "block.py").write_text(code, encoding="utf-8")
     result = run_python(["block.py"], tmp_path)

@@ -204,3 +204,19 @@ def test_a_record_from_before_motion_blur_stands_where_blur_would_not_have_chang
     before = {**camera, "sensor": {key: value for key, value in camera["sensor"].items() if key != "exposure_time"}}
     files.write_model(tmp_path / names.RENDER_RECORD, today.model_copy(update={"camera": before}))
     assert (_recorded(tmp_path) == today) is same
+
+
+def test_the_shutter_poses_are_the_same_bits_wherever_the_flown_states_lie_in_memory():
+    """The online camera interpolates a slice of the ticks flown so far, the batch render flight.csv's whole table:
+    the same rows at another address must give the same poses, to the bit (BLAS's dot rounds by alignment)."""
+    times = np.arange(0.0, 0.1001, 0.01)
+    tumbling = Rotation.from_rotvec(np.outer(times, [3.0, -2.0, 5.0]) + [0.3, 0.2, 0.1]).as_quat()
+    rows = np.array([stored(row) for row in np.column_stack([_flight(times)[:, :4], tumbling, _flight(times)[:, 8:]])])
+    whole = FlownStates.of_rows(rows)  # quaternions off unit length by the six decimals flight.csv keeps
+    for t in np.linspace(0.012, 0.088, 40):
+        expected = exposure_poses(whole, ARM, t, _analytic_camera(t), 0.013)
+        for offset in range(1, 8):
+            buffer = np.zeros(offset + rows.size)
+            buffer[offset:] = rows.ravel()
+            moved = FlownStates.of_rows(buffer[offset:].reshape(rows.shape))
+            assert np.array_equal(exposure_poses(moved, ARM, t, _analytic_camera(t), 0.013), expected), (t, offset)

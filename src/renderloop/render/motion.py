@@ -15,6 +15,7 @@ two compute the same poses to the bit and render the same frames.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -81,15 +82,21 @@ class FlownStates:
 
 def slerp(q0: np.ndarray, q1: np.ndarray, w: float) -> np.ndarray:
     """Spherical interpolation of unit quaternions (either order of components), the short way round."""
-    q0, q1 = q0 / np.linalg.norm(q0), q1 / np.linalg.norm(q1)
-    dot = float(q0 @ q1)
+    q0, q1 = q0 / math.sqrt(_dot(q0, q0)), q1 / math.sqrt(_dot(q1, q1))
+    dot = _dot(q0, q1)
     if dot < 0:  # q and -q are one rotation: go the short way
         q1, dot = -q1, -dot
     angle = np.arccos(min(dot, 1.0))
     if angle < 1e-9:
         blended = q0 + w * (q1 - q0)
-        return blended / np.linalg.norm(blended)
+        return blended / math.sqrt(_dot(blended, blended))
     return (np.sin((1 - w) * angle) * q0 + np.sin(w * angle) * q1) / np.sin(angle)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """a . b summed in one fixed order: BLAS's dot (and so np.linalg.norm) rounds differently with the vectors'
+    alignment in memory, and the online camera's states are a slice of the ticks flown so far, not flight.csv's table."""
+    return float(a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3])
 
 
 def _rotation(quaternion_xyzw: np.ndarray) -> np.ndarray:
