@@ -50,3 +50,27 @@ def test_the_example_policy_flies_its_episodes_and_prints_a_row_each(tmp_path):
     header, *rows = [line.split() for line in result.stdout.splitlines() if line.strip()]
     assert header[:3] == ["episode", "plant", "return"]
     assert len(rows) == 1 and rows[0][0] == "0" and int(rows[0][3]) <= 2  # one episode, at most the views asked for
+
+
+UNGUARDED = """
+from renderloop import Simulation, load_config
+from renderloop.config import Config
+
+data = load_config("demo").model_dump(mode="json")
+data["camera"].update(width=64, height=48, rate_hz=0.04)  # four frames of the 86 s scan
+data["renderer"].update(backend="cycles", samples=1)
+with Simulation(Config.model_validate(data), "run") as sim:
+    sim.follow(sim.scan_trajectory())
+    camera = sim.add_camera(workers=2)
+    sim.run()
+    print(len([frame for frame in camera.frames_until(sim.end)]))
+"""
+
+
+def test_a_script_without_a_main_guard_renders_with_cycles_workers(tmp_path):
+    """Spawned workers run the main script again unless `if __name__ == "__main__":` guards it; a reader's script
+    has none, and its Cycles workers must start without it (they hung, and the script with them)."""
+    (tmp_path / "script.py").write_text(UNGUARDED, encoding="utf-8")
+    result = run_python(["script.py"], tmp_path)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert int(result.stdout.split()[-1]) >= 3

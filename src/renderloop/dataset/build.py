@@ -35,7 +35,7 @@ from renderloop.dataset.views import close_view, picked_view, random_view
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_bytes, write_json
 from renderloop.render.camera import Intrinsics
-from renderloop.render.executor import COLOUR_SENSOR_STREAM, ray_session, spawnable_sys_path
+from renderloop.render.executor import COLOUR_SENSOR_STREAM, ray_session, spawn_safely
 from renderloop.render.sensor import sensor_rgb
 from renderloop.rundir import ownership
 from renderloop.scene.objects import greenhouse_objects, neighbour_fruit
@@ -166,7 +166,7 @@ def _in_processes(spec: DatasetSpec, todo: dict[int, list[int]], workers: int) -
         return
     threads = max(1, (os.cpu_count() or 1) // workers)  # the workers share the cores
     with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
-        with spawnable_sys_path():  # the workers start on the first submissions
+        with spawn_safely():  # the workers start on the first submissions
             futures = [pool.submit(render_scene_views, spec, s, v, threads) for s, v in todo.items()]
         for future in as_completed(futures):
             yield future.result()

@@ -22,7 +22,7 @@ from renderloop.evaluation.table import EVAL_CSV, EVAL_JSON, Scenario, scenario
 from renderloop.pipeline import run_pipeline
 from renderloop.render.executor import (
     ray_session,
-    spawnable_sys_path,
+    spawn_safely,
     threads_per_worker,
 )
 from renderloop.rundir import files, ownership
@@ -56,7 +56,7 @@ def _local(out: Path, configs: list[Config], force: bool, workers: int) -> Itera
         return
     # spawn, not fork: the runs render with Blender and MuJoCo, neither survives a fork
     with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
-        with spawnable_sys_path():
+        with spawn_safely():
             futures = [pool.submit(run_seed, out, config, force) for config in configs]
         for future in as_completed(futures):
             yield future.result()

@@ -36,7 +36,7 @@ from renderloop.render.executor import (
     FrameWorker,
     blurs_motion,
     ray_session,
-    spawnable_sys_path,
+    spawn_safely,
     threads_per_worker,
 )
 from renderloop.render.frames import decode_depth, encode_images, stored_images
@@ -179,7 +179,7 @@ class _Renderers:
         elif hasattr(self, "actors"):
             self.pending[index] = self.actors[index % len(self.actors)].render_pose.remote(index, pose, motion)
         else:
-            with spawnable_sys_path():  # a worker process starts on the first submission
+            with spawn_safely():  # a worker process starts on the first submission
                 self.pending[index] = self.pool.submit(_render_in_worker, index, pose, motion)
 
     def ready(self, index: int) -> bool:

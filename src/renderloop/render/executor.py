@@ -132,16 +132,27 @@ def _render_in_process_worker(indices: list[int]) -> Rendered:
 
 
 @contextmanager
-def spawnable_sys_path() -> Iterator[None]:
-    """Spawned workers start from the parent's sys.path. Once bpy is imported that holds
-    Blender's scripts/modules, whose inner `bpy` package shadows the real one and makes
-    `import bpy` fail in the child: hide those entries while the workers start."""
+def spawn_safely() -> Iterator[None]:
+    """What spawned workers take from the parent while they start, held back for the time they start:
+
+    - sys.path: once bpy is imported it holds Blender's scripts/modules, whose inner `bpy` package shadows the real
+      one and makes `import bpy` fail in the child;
+    - the main script: a spawned child runs it again unless `if __name__ == "__main__":` guards it, so a user's script
+      that flies a Cycles camera would start itself in every worker (and hang, the parent writing the worker's scene
+      into a pipe nobody reads). The workers run renderloop's own functions and need nothing of it."""
     saved = list(sys.path)
+    main = sys.modules.get("__main__")
+    held = {name: vars(main)[name] for name in ("__file__", "__spec__") if main is not None and name in vars(main)}
     sys.path[:] = [p for p in saved if not ("scripts" in p and ("bpy" in p or "blender" in p))]
+    if held:  # multiprocessing.spawn finds the script by __spec__'s name (python -m) or else by __file__
+        vars(main).pop("__file__", None)
+        main.__spec__ = None
     try:
         yield
     finally:
         sys.path[:] = saved
+        if held:
+            vars(main).update(held)
 
 
 def render_local(config: Config, scene: Scene, poses: np.ndarray, backend: str, indices: list[int], workers: int,
@@ -158,7 +169,7 @@ def render_local(config: Config, scene: Scene, poses: np.ndarray, backend: str, 
     # spawn, not fork: neither Blender nor an OpenGL context survives a fork
     with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_start_process_worker,
                              initargs=(config, scene, poses, backend, motion)) as pool:
-        with spawnable_sys_path():  # the workers start on the first submissions
+        with spawn_safely():  # the workers start on the first submissions
             futures = [pool.submit(_render_in_process_worker, chunk) for chunk in _chunks(indices)]
         for future in as_completed(futures):
             yield future.result()
