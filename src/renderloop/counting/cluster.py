@@ -5,7 +5,7 @@ of one row into a fixed set of `points` (500): a random subsample when there are
 gaussian copies of the detections when there are fewer. OPTICS then runs with
 eps = 4 cm (a pepper's size) and MinPts = 2 * ceil(500 / n_init): "a pepper is seen at
 least twice", scaled by how many copies augmentation made of each detection. Every
-cluster is one pepper.
+cluster is one pepper, unless it holds two (below).
 
 That scaling holds exactly only if every detection owns ceil(500 / n_init) points, so
 each detection gets exactly that many and the set holds n_init * ceil(500 / n_init)
@@ -16,8 +16,12 @@ MinPts.
 The extraction is scikit-learn's `dbscan` cut of the reachability plot at eps (a cluster
 is a set of points chained by core points at most 4 cm apart, the paper's wording), not
 `xi`, which splits a subsampled fruit's cloud at small valleys; both use max_eps = eps.
-Two fruit whose skin points come within 4 cm of each other chain into one: the paper's
-rule, kept. The measurements behind each choice are in docs/stages/counting.md.
+Two fruit whose skin points come within 4 cm of each other chain into one cluster: the
+paper's rule. Past the paper, a cluster whose detections fall into two groups whose
+centres lie at least `split_distance` apart (a pepper's width: one fruit's points never
+spread that far, two fruit's centres are never closer) is split in two, each group seen
+at least min_views times, and each part again (`split_chained`). The measurements behind
+each choice are in docs/stages/counting.md.
 """
 
 from __future__ import annotations
@@ -51,6 +55,7 @@ class ClusterParams:
     min_views: int  # detections a pepper needs (the paper's 2)
     method: str  # "dbscan" or "xi"
     xi: float = 0.05
+    split_distance: float | None = None  # m between two groups' centres that makes a cluster two fruit; None: never
 
 
 @dataclass(frozen=True)
@@ -147,7 +152,56 @@ def cluster_row(detections: np.ndarray, params: ClusterParams, rng: np.random.Ge
     points, original, source = _resample(detections, params.points, params.noise_std, rng)
     min_samples = min_samples_for(n_init, params.points, params.min_views)
     labels = optics_labels(cdist(points, points), min_samples, params.eps, params.method, params.xi).astype(int)
+    if params.split_distance is not None:
+        labels = split_chained(points, original, source, labels, params.split_distance, params.min_views)
     return RowClusters(points, original, labels, _centers(points, original, labels), n_init, min_samples, source)
+
+
+def _two_groups(points: np.ndarray, least: int) -> np.ndarray | None:
+    """The best cut of (N, 3) points into two groups of at least `least` along their principal axis (least squares,
+    exact: every cut of the sorted projections is tried); a mask of the second group, or None if none can be made."""
+    n = len(points)
+    if n < 2 * least:
+        return None
+    centred = points - points.mean(axis=0)
+    axis = np.linalg.svd(centred, full_matrices=False)[2][0]
+    along = centred @ axis
+    order = np.argsort(along, kind="stable")
+    ranked = along[order]
+    first = np.cumsum(ranked)
+    sizes = np.arange(1, n + 1, dtype=float)
+    # SSE of ranked[:i] + SSE of ranked[i:] up to a constant: -(sum_left^2 / i) - (sum_right^2 / (n - i))
+    cuts = np.arange(least, n - least + 1)
+    left, right = first[cuts - 1], first[-1] - first[cuts - 1]
+    best = cuts[np.argmin(-(left**2) / sizes[cuts - 1] - right**2 / (n - cuts))]
+    second = np.zeros(n, dtype=bool)
+    second[order[best:]] = True
+    return second
+
+
+def split_chained(points: np.ndarray, original: np.ndarray, source: np.ndarray, labels: np.ndarray, distance: float,
+                  min_views: int) -> np.ndarray:
+    """Labels with every cluster that holds two fruit split: its detections cut in two along their principal axis,
+    kept apart when both parts have min_views detections and their centres are `distance` or more apart. Each part is
+    tried again. An augmented copy goes with the detection it copies; the part holding the cluster's first detection
+    keeps the label, the other gets the next free one, so the labels do not depend on the axis's sign."""
+    labels = labels.copy()
+    todo = sorted(set(labels[labels >= 0].tolist()))
+    while todo:
+        label = todo.pop(0)
+        own = np.flatnonzero(original & (labels == label))
+        second = _two_groups(points[own], min_views)
+        if second is None:
+            continue
+        if np.linalg.norm(points[own[second]].mean(axis=0) - points[own[~second]].mean(axis=0)) < distance:
+            continue
+        if second[np.argmin(source[own])]:
+            second = ~second
+        moved = set(source[own[second]].tolist())
+        new = int(labels.max()) + 1
+        labels[(labels == label) & np.isin(source, list(moved))] = new
+        todo += [label, new]
+    return labels
 
 
 @dataclass(frozen=True)
@@ -184,7 +238,8 @@ def class_points(frames: Iterable[DetectionFrame]) -> dict[str, np.ndarray]:
 
 def params_from(counting: CountingConfig) -> ClusterParams:
     return ClusterParams(points=counting.points, eps=counting.eps, noise_std=counting.augment_noise_std,
-                         min_views=counting.min_views, method=counting.cluster_method, xi=counting.xi)
+                         min_views=counting.min_views, method=counting.cluster_method, xi=counting.xi,
+                         split_distance=counting.split_distance)
 
 
 # (row id, class, draw) -> (seed, counting config, digest of the row's detections, its clustering, its plants)
