@@ -86,12 +86,12 @@ class CountingConfig(Strict):
         "only. A sparse scan sees many real fruit once, a dense one sees a real fruit again: fit it per scan "
         "(benchmarks/intervals.py).")
     cluster_method: Literal["dbscan", "xi"] = Field("dbscan", description="OPTICS cluster extraction (scikit-learn).")
+    xi: Real(0.0, 1.0, low_open=True, high_open=True) = Field(0.05, description="Steepness for cluster_method 'xi'.")
     split_distance: Real(0.01, 1.0) | None = Field(
         0.07, description="A cluster whose detections fall into two groups (cut along their principal axis), each of "
         "min_views detections, with centres this far apart or more is two fruit whose points chained, m: about a "
         "pepper's width (one fruit's points never spread so far, two fruit's centres are never closer). null: the "
         "paper's rule, one cluster one fruit.")
-    xi: Real(0.0, 1.0, low_open=True, high_open=True) = Field(0.05, description="Steepness for cluster_method 'xi'.")
     lof_neighbors: Count(2, 1000) = Field(
         4, description="LocalOutlierFactor n_neighbors when use_layout is false; keep it below the fewest views of a fruit."
     )

@@ -169,11 +169,10 @@ def _two_groups(points: np.ndarray, least: int) -> np.ndarray | None:
     order = np.argsort(along, kind="stable")
     ranked = along[order]
     first = np.cumsum(ranked)
-    sizes = np.arange(1, n + 1, dtype=float)
     # SSE of ranked[:i] + SSE of ranked[i:] up to a constant: -(sum_left^2 / i) - (sum_right^2 / (n - i))
     cuts = np.arange(least, n - least + 1)
     left, right = first[cuts - 1], first[-1] - first[cuts - 1]
-    best = cuts[np.argmin(-(left**2) / sizes[cuts - 1] - right**2 / (n - cuts))]
+    best = cuts[np.argmin(-(left**2) / cuts - right**2 / (n - cuts))]
     second = np.zeros(n, dtype=bool)
     second[order[best:]] = True
     return second
@@ -186,7 +185,7 @@ def split_chained(points: np.ndarray, original: np.ndarray, source: np.ndarray, 
     tried again. An augmented copy goes with the detection it copies; the part holding the cluster's first detection
     keeps the label, the other gets the next free one, so the labels do not depend on the axis's sign."""
     labels = labels.copy()
-    todo = sorted(set(labels[labels >= 0].tolist()))
+    todo = np.unique(labels[labels >= 0]).tolist()
     while todo:
         label = todo.pop(0)
         own = np.flatnonzero(original & (labels == label))
@@ -197,9 +196,8 @@ def split_chained(points: np.ndarray, original: np.ndarray, source: np.ndarray, 
             continue
         if second[np.argmin(source[own])]:
             second = ~second
-        moved = set(source[own[second]].tolist())
         new = int(labels.max()) + 1
-        labels[(labels == label) & np.isin(source, list(moved))] = new
+        labels[(labels == label) & np.isin(source, source[own[second]])] = new
         todo += [label, new]
     return labels
 
