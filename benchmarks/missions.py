@@ -46,14 +46,18 @@ def _point(evaluation: str) -> dict:
 
 def _thinned(point: dict, every: int, credit: float) -> dict:
     """A static evaluation's scans thinned to every `every`-th frame, recounted with the lone credit `credit`."""
-    cases, frames = [], []
+    cases, frames, errors = [], [], []
     for run in point["runs"]:
-        cases += gather(run, [every], files.read_config(run).counting.interval)[0]
+        config = files.read_config(run)
+        mine = gather(run, [every], config.counting.interval)[0]
+        cases += mine
+        errors.append((round(yield_error(mine, credit)[0], 2), config.seed))
         frames.append(len(range(0, len(files.read_poses(run)[0]), every)))
     error, exact = yield_error(cases, credit)
+    worst = max(errors)
     return {**{k: point[k] for k in ("evaluation", "mission", "seeds", "flight_time_s")}, "rate_hz": point["rate_hz"] / every,
             "every": every, "lone_credit": credit, "frames": sum(frames) / len(frames), "mean_abs_error_pct": round(error, 2),
-            "exact_plants": round(exact, 4)}
+            "worst_abs_error_pct": worst[0], "worst_seed": worst[1], "exact_plants": round(exact, 4)}
 
 
 def main() -> None:
