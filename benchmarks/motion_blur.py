@@ -48,7 +48,7 @@ def timed(call) -> tuple[float, float]:
 def measure(config, scene, poses: list[np.ndarray]) -> dict[str, dict[str, float]]:
     sensor_on = config.model_copy(update={"camera": config.camera.model_copy(
         update={"sensor": config.camera.sensor.model_copy(update={"enabled": True})})})
-    worker = FrameWorker(sensor_on, scene, None, "cycles")
+    worker = FrameWorker(sensor_on, scene)  # the demo preset's backend: Cycles
     try:
         renderer = worker.renderer
         renderer.render(poses[0])  # the first frame also syncs the scene

@@ -23,6 +23,7 @@ from pathlib import Path
 from common import scan_poses, summary
 
 from renderloop.config import load_config
+from renderloop.parallel import Executor
 from renderloop.planning.stage import run_plan
 from renderloop.render.camera import Intrinsics
 from renderloop.render.cycles import CyclesRenderer
@@ -44,9 +45,9 @@ def cycles_frames(scene, config, poses) -> tuple[list[float], list[float]]:
     return seconds, shares
 
 
-def stage_fps(workers: int, run_dir: Path, config, executor: str = "local") -> float:
+def stage_fps(workers: int, run_dir: Path, config, kind: str = "local") -> float:
     start = time.perf_counter()
-    run_render(run_dir, config, force=True, workers=workers, executor=executor)
+    run_render(run_dir, config, force=True, executor=Executor(kind=kind, workers=workers))
     return len(list((run_dir / "rgb").iterdir())) / (time.perf_counter() - start)
 
 
@@ -79,7 +80,7 @@ def main() -> None:
         run_plan(run_dir, demo)
         run_fly(run_dir, demo)
         fps = {workers: stage_fps(workers, run_dir, demo) for workers in (1, 2)}
-        fps["ray"] = stage_fps(2, run_dir, demo, executor="ray")  # a local 2-CPU Ray cluster, started inside the timing
+        fps["ray"] = stage_fps(2, run_dir, demo, kind="ray")  # a local 2-CPU Ray cluster, started inside the timing
 
     results = {
         "cycles_default_s_per_frame": summary(default_seconds),

@@ -46,10 +46,7 @@ def paper_run(tmp_path_factory) -> tuple[Config, Path]:
 
 def fly_demo_raster(run_dir: Path, rate_hz: float = 0.25) -> Path:
     """The demo scenario planned and flown, set to render with the raster backend at a few frames."""
-    data = load_config("demo").model_dump(mode="json")
-    data["renderer"]["backend"] = "raster"
-    data["camera"]["rate_hz"] = rate_hz
-    config = Config.model_validate(data)
+    config = load_config("demo").override({"renderer": {"backend": "raster"}, "camera": {"rate_hz": rate_hz}})
     run_scene(run_dir, config)
     run_plan(run_dir, config)
     run_fly(run_dir, config)
@@ -93,3 +90,50 @@ def jittered_model(seed: int):
         for parameter in model.parameters():
             parameter.add_(torch.randn_like(parameter) * 0.05)
     return model
+
+
+def _fruit_image(rng, size=(96, 72)):
+    """Green clutter with red (ripe) and dark green (unripe) blobs at known places."""
+    from PIL import Image, ImageDraw
+
+    image = Image.new("RGB", size, (60, 110, 50))
+    draw = ImageDraw.Draw(image)
+    for _ in range(6):
+        x, y = rng.integers(0, size[0]), rng.integers(0, size[1])
+        draw.ellipse([x, y, x + 20, y + 8], fill=(40, 140, 40))
+    objects = []
+    for _ in range(int(rng.integers(1, 3))):
+        w, h = int(rng.integers(12, 24)), int(rng.integers(14, 26))
+        x, y = int(rng.integers(0, size[0] - w)), int(rng.integers(0, size[1] - h))
+        ripe = bool(rng.random() < 0.6)
+        draw.ellipse([x, y, x + w - 1, y + h - 1], fill=(200, 30, 20) if ripe else (20, 80, 20))
+        objects.append(([x, y, x + w, y + h], 1 if ripe else 2))
+    return image, objects
+
+
+@pytest.fixture(scope="module")
+def tiny_dataset(tmp_path_factory) -> Path:
+    """A COCO dataset of eight training and three validation images, 96x72, with one or two fruit each."""
+    import numpy as np
+
+    from renderloop.io.atomic import write_json
+
+    root = tmp_path_factory.mktemp("tiny")
+    (root / "images").mkdir()
+    (root / "annotations").mkdir()
+    rng = np.random.default_rng(0)
+    for split, count in (("train", 8), ("val", 3)):
+        images, annotations = [], []
+        for i in range(count):
+            image, objects = _fruit_image(rng)
+            name = f"images/{split}{i}.jpg"
+            image.save(root / name, quality=95)
+            images.append({"id": 100 + i, "file_name": name, "width": 96, "height": 72})  # ids are not positions
+            for box, label in objects:
+                x0, y0, x1, y1 = box
+                annotations.append({"id": len(annotations) + 1, "image_id": 100 + i, "category_id": label,
+                                    "bbox": [x0, y0, x1 - x0, y1 - y0], "area": (x1 - x0) * (y1 - y0), "iscrowd": 0})
+        write_json(root / "annotations" / f"instances_{split}.json",
+                   {"images": images, "annotations": annotations,
+                    "categories": [{"id": 1, "name": "ripe"}, {"id": 2, "name": "unripe"}]})
+    return root

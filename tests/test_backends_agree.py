@@ -16,11 +16,8 @@ from renderloop.scene.generate import generate_scene
 
 @pytest.fixture(scope="module", params=["simple", "pepper"])
 def both(request):
-    data = load_config("demo").model_dump(mode="json")
-    data["plants"]["style"] = request.param
-    data["camera"].update(width=160, height=120)
-    data["renderer"].update(samples=4, denoise=False)
-    config = type(load_config("demo")).model_validate(data)
+    config = load_config("demo").override({"plants": {"style": request.param}, "camera": {"width": 160, "height": 120},
+                                           "renderer": {"samples": 4, "denoise": False}})
     scene = generate_scene(config)
     intrinsics = Intrinsics.from_config(config.camera)
     plant = scene.plants[1]

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from renderloop.config import load_config
+from renderloop.parallel import Executor
 from renderloop.render.camera import Intrinsics
 from renderloop.render.cycles import CyclesRenderer
 from renderloop.robot.kinematics import camera_rotation, homogeneous, look_at
@@ -16,10 +17,7 @@ from renderloop.scene.generate import generate_scene
 
 
 def small_config(width: int = 96, height: int = 72):
-    data = load_config("demo").model_dump(mode="json")
-    data["camera"].update(width=width, height=height)
-    data["renderer"].update(samples=4, denoise=False)
-    return type(load_config("demo")).model_validate(data)
+    return load_config("demo").override({"camera": {"width": width, "height": height}, "renderer": {"samples": 4, "denoise": False}})
 
 
 def plane_depth(intrinsics: Intrinsics, pose: np.ndarray, point: np.ndarray, normal: np.ndarray) -> np.ndarray:
@@ -121,15 +119,13 @@ def test_cycles_workers_start_after_blender_was_imported_here(tmp_path):
     from renderloop.scene.stage import run_scene
     from renderloop.sim.stage import run_fly
 
-    data = small_config(64, 48).model_dump(mode="json")
-    data["camera"]["rate_hz"] = 0.05  # 5 frames
-    config = type(small_config()).model_validate(data)
+    config = small_config(64, 48).override({"camera": {"rate_hz": 0.05}})  # 5 frames
     one, two = tmp_path / "one", tmp_path / "two"
     for stage in (run_scene, run_plan, run_fly):
         stage(one, config)
     os.system(f"cp -r {one} {two}")
     run_render(one, config)
-    run_render(two, config, workers=2)
+    run_render(two, config, executor=Executor(workers=2))
     for name in ("rgb", "depth", "masks"):
         assert [p.read_bytes() for p in sorted((one / name).iterdir())] == [p.read_bytes() for p in sorted((two / name).iterdir())]
 
@@ -181,9 +177,7 @@ def test_device_auto_falls_back_to_the_cpu_and_gpu_is_refused_in_one_line():
     from renderloop.errors import UserError
 
     def with_device(device: str):
-        data = small_config(64, 48).model_dump(mode="json")
-        data["renderer"]["device"] = device
-        return type(small_config()).model_validate(data)
+        return small_config(64, 48).override({"renderer": {"device": device}})
 
     pose = homogeneous(camera_rotation(0.0, 0.0), (0.0, 0.0, 1.0))
     cube = [("cube", meshes.box((1.5, 0.0, 1.0), (0.3, 0.3, 0.3)), (0.8, 0.1, 0.1), 7)]
@@ -204,17 +198,15 @@ def test_device_auto_falls_back_to_the_cpu_and_gpu_is_refused_in_one_line():
 def test_gpu_without_a_gpu_is_the_same_one_line_from_worker_processes():
     from renderloop.errors import UserError
     from renderloop.render.cycles import _gpu_devices
-    from renderloop.render.executor import render_local
+    from renderloop.render.executor import render_frames
 
     if _gpu_devices() is not None:
         pytest.skip("this machine has a GPU")
-    data = small_config(32, 24).model_dump(mode="json")
-    data["renderer"]["device"] = "gpu"
-    config = type(small_config()).model_validate(data)
+    config = small_config(32, 24).override({"renderer": {"device": "gpu"}})
     scene = generate_scene(config)
     poses = np.stack([homogeneous(camera_rotation(0.0, 0.0), (0.0, 0.0, 1.0))] * 2)
     with pytest.raises(UserError, match=r"^renderer\.device: gpu, but Cycles finds no CUDA or OptiX GPU"):
-        list(render_local(config, scene, poses, "cycles", [0, 1], workers=2))
+        list(render_frames(config, scene, poses, [0, 1], Executor(workers=2)))
 
 
 def test_cycles_materials_are_built_from_the_table(monkeypatch):

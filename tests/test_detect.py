@@ -34,10 +34,7 @@ def model(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory) -> Path:
     run_dir = fly_demo_raster(tmp_path_factory.mktemp("detect") / "run", rate_hz=0.2)
-    config = read_config(run_dir)
-    data = config.model_dump(mode="json")
-    data["detector"]["score_threshold"] = 0.3
-    (run_dir / "config.yaml").write_text(type(config).model_validate(data).to_yaml())
+    (run_dir / "config.yaml").write_text(read_config(run_dir).override({"detector": {"score_threshold": 0.3}}).to_yaml())
     run_render(run_dir, read_config(run_dir))
     return run_dir
 
@@ -143,10 +140,9 @@ def test_a_threshold_scored_from_one_search_is_what_detect_gives_at_it(rendered:
     run_dir = tmp_path / "run"
     shutil.copytree(rendered, run_dir)
     settings = read_config(run_dir).detector
-    searched = search_run(run_dir, Detector(model), settings.layouts, settings.mirror)
+    searched = search_run(run_dir, Detector(model), settings)
     for threshold in (0.3, 0.5):
-        config = read_config(run_dir)
-        config = config.model_copy(update={"detector": config.detector.model_copy(update={"score_threshold": threshold})})
+        config = read_config(run_dir).override({"detector": {"score_threshold": threshold}})
         run_detect(run_dir, with_detector(config, model=model), force=True)
         truth = json.loads((run_dir / "detection_scores.json").read_text())
         (score,) = score_thresholds([searched], [threshold])

@@ -32,11 +32,7 @@ LEAN = {"plants": {"pepper_style": {"leaves": [30, 40]}}}  # the greenhouse pres
 
 
 def config_of(preset: str, **overrides: dict) -> Config:
-    data = load_config(preset).model_dump(mode="json")
-    for section, values in overrides.items():
-        for key, value in values.items():
-            data[section][key] = value if not isinstance(value, dict) else {**data[section][key], **value}
-    return Config.model_validate(data)
+    return load_config(preset).override(overrides)
 
 
 def sha256(data: bytes) -> str:

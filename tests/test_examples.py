@@ -54,12 +54,10 @@ def test_the_example_policy_flies_its_episodes_and_prints_a_row_each(tmp_path):
 
 UNGUARDED = """
 from renderloop import Simulation, load_config
-from renderloop.config import Config
 
-data = load_config("demo").model_dump(mode="json")
-data["camera"].update(width=64, height=48, rate_hz=0.04)  # four frames of the 86 s scan
-data["renderer"].update(backend="cycles", samples=1)
-with Simulation(Config.model_validate(data), "run") as sim:
+config = load_config("demo").override({"camera": {"width": 64, "height": 48, "rate_hz": 0.04},  # four frames of the 86 s scan
+                                       "renderer": {"backend": "cycles", "samples": 1}})
+with Simulation(config, "run") as sim:
     sim.follow(sim.scan_trajectory())
     camera = sim.add_camera(workers=2)
     sim.run()

@@ -114,9 +114,7 @@ def test_groundtruth_is_the_flown_camera(paper_run):
 
 def test_position_noise_is_seeded(demo, tmp_path):
     config, scene = demo
-    data = config.model_dump()
-    data["controller"]["position_noise_std"] = 0.01
-    noisy = type(config).model_validate(data)
+    noisy = config.override({"controller": {"position_noise_std": 0.01}})
     model = mujoco.MjModel.from_xml_string(world_xml(scene, noisy))
 
     def flown(seed: int) -> np.ndarray:

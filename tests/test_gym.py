@@ -25,9 +25,7 @@ SEED = 3
 @pytest.fixture(scope="module")
 def small() -> Config:
     """The demo greenhouse seen by a 160 x 120 camera: frames, detection and counting stay quick."""
-    data = load_config("demo").model_dump(mode="json")
-    data["camera"].update(width=160, height=120)
-    return Config.model_validate(data)
+    return load_config("demo").override({"camera": {"width": 160, "height": 120}})
 
 
 @pytest.fixture(scope="module")
@@ -87,6 +85,9 @@ def test_the_same_seed_gives_the_same_episode(small: Config, scenes: Path):
 def test_an_action_out_of_reach_is_flown_to_the_nearest_reachable_view(small: Config, scenes: Path):
     with PepperScanEnv(small, max_views=2, run_dir=scenes) as env:
         _, info = env.reset(seed=SEED, options={"plant": 1})  # a plant with neighbours on both sides in its row
+        with pytest.raises(ValueError, match=r"^PepperScanEnv.step: action \(2,\) is not 3 numbers"):
+            env.step(np.zeros(2, np.float32))  # no action at all: refused before anything flies
+        assert env.sim.t == 0.0 and env.views == 0
         # the far side of the plant, through its row, and far outside the action's ranges
         action = np.array([opposite(info["view"]), 7.0, -3.0], np.float32)
         observation, _, _, _, info = env.step(action)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import fly_demo_raster
 
-from renderloop.config import Config, load_config
+from renderloop.config import load_config
 from renderloop.counting.online import OnlineCounter
 from renderloop.errors import UserError
 from renderloop.loop.reference import quintic_bridge
@@ -155,7 +155,7 @@ def _contract(run_dir: Path) -> dict[str, bytes]:
 
 def test_an_online_run_writes_the_batch_runs_files_and_counts(complete_run: Path, tmp_path: Path):
     batch = files.read_config(complete_run)
-    online = batch.model_copy(update={"mission": batch.mission.model_copy(update={"online": True})})
+    online = batch.override({"mission": {"online": True}})
     run_dir = tmp_path / "online"
     run_pipeline(run_dir, online)
     assert _contract(run_dir) == _contract(complete_run)
@@ -178,10 +178,8 @@ def test_the_online_counter_counts_what_the_batch_count_counts(complete_run: Pat
 
 @pytest.mark.parametrize("workers", [2])
 def test_one_and_two_cycles_workers_render_the_same_online_frames(workers: int, tmp_path: Path):
-    data = load_config("demo").model_dump(mode="json")
-    data["camera"].update(width=64, height=48, rate_hz=0.04)  # four frames of the 86 s scan
-    data["renderer"]["backend"] = "cycles"
-    config = Config.model_validate(data)
+    config = load_config("demo").override({"camera": {"width": 64, "height": 48, "rate_hz": 0.04},  # four frames of the 86 s scan
+                                           "renderer": {"backend": "cycles"}})
     one = tmp_path / "one"
     with Simulation(config, one) as sim:
         sim.follow(sim.scan_trajectory())
@@ -205,11 +203,8 @@ def test_online_cycles_sensor_frames_blurred_by_the_flown_motion_are_the_batch_r
     from renderloop.render.stage import run_render
     from renderloop.sim.stage import camera_frames, write_flight
 
-    data = load_config("demo").model_dump(mode="json")
-    data["camera"].update(width=64, height=48, rate_hz=0.1)
-    data["camera"]["sensor"]["enabled"] = True
-    data["renderer"].update(backend="cycles", samples=1)
-    config = Config.model_validate(data)
+    config = load_config("demo").override({"camera": {"width": 64, "height": 48, "rate_hz": 0.1, "sensor": {"enabled": True}},
+                                           "renderer": {"backend": "cycles", "samples": 1}})
     run_dir = tmp_path / "run"
     with Simulation(config, run_dir) as sim:
         sim.follow(sim.scan_trajectory())

@@ -11,7 +11,7 @@ import pytest
 import yaml
 from conftest import cli, fly_demo_raster
 
-from renderloop.config import Config, IntervalConfig, deep_merge, preset_overrides, validate
+from renderloop.config import Config, IntervalConfig, deep_merge, load_config
 from renderloop.counting.stage import run_count, run_counting
 from renderloop.loop.simulation import Simulation
 from renderloop.loop.viewpoints import View, camera_position
@@ -28,7 +28,7 @@ SMALL = {"renderer": {"backend": "raster"}, "greenhouse": {"plants_per_table": 2
 
 
 def _config(**adaptive: float) -> Config:
-    return validate(deep_merge(preset_overrides("demo"), deep_merge(SMALL, {"mission": {"adaptive": adaptive}})), "test")
+    return load_config("demo").override(SMALL).override({"mission": {"adaptive": adaptive}})
 
 
 @pytest.fixture(scope="module")
@@ -69,10 +69,9 @@ def test_an_adaptive_runs_count_takes_the_missions_interval_and_lone_credit_and_
     run_dir = tmp_path / "run"
     shutil.copytree(adaptive_run, run_dir)
     wide = IntervalConfig(hidden=3.0)  # about three hidden fruit a plant: no interval can be the estimate alone
-    config = _config().model_copy(update={"mission": _config().mission.model_copy(
-        update={"adaptive": _config().mission.adaptive.model_copy(update={"interval": wide, "lone_credit": 1.0})})})
+    config = _config().override({"mission": {"adaptive": {"interval": wide, "lone_credit": 1.0}}})
     assert run_counting(config).interval == wide and run_counting(config).lone_credit == 1.0
-    static = config.model_copy(update={"mission": config.mission.model_copy(update={"kind": "static"})})
+    static = config.override({"mission": {"kind": "static"}})
     assert run_counting(static) == config.counting == _config().counting
     run_count(run_dir, config)
     counts = files.read_counts(run_dir)

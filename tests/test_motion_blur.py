@@ -92,10 +92,7 @@ def test_the_online_cameras_window_of_the_log_gives_the_batch_renders_poses_to_t
 
 
 def _tiny_config(width: int = 64, height: int = 48, samples: int = 1):
-    data = load_config("demo").model_dump(mode="json")
-    data["camera"].update(width=width, height=height)
-    data["renderer"].update(samples=samples, denoise=False)
-    return Config.model_validate(data)
+    return load_config("demo").override({"camera": {"width": width, "height": height}, "renderer": {"samples": samples, "denoise": False}})
 
 
 @pytest.fixture(scope="module")
@@ -163,6 +160,7 @@ def test_a_camera_at_rest_gives_the_unblurred_frame_and_blurring_leaves_the_next
 
 def test_the_sensor_being_on_leaves_the_ideal_colour_depth_and_masks_unchanged():
     from renderloop.render.executor import FrameWorker, blurs_motion
+    from renderloop.render.stage import with_backend
     from renderloop.rundir import names
     from renderloop.scene.generate import generate_scene
 
@@ -173,15 +171,15 @@ def test_the_sensor_being_on_leaves_the_ideal_colour_depth_and_masks_unchanged()
     pose = look_at(target + np.array([-0.5, 0.05, 0.1]), target)
     moved = pose.copy()
     moved[:3, 3] += pose[:3, 0] * 0.05
-    sensor = config.model_copy(update={"camera": config.camera.model_copy(update={"sensor": SensorConfig(enabled=True)})})
-    assert blurs_motion(sensor, "cycles") and not blurs_motion(sensor, "raster") and not blurs_motion(config, "cycles")
-    worker = FrameWorker(sensor, scene, None, "cycles")
+    sensor = config.override({"camera": {"sensor": SensorConfig(enabled=True)}})
+    assert blurs_motion(sensor) and not blurs_motion(with_backend(sensor, "raster")) and not blurs_motion(config)
+    worker = FrameWorker(sensor, scene)
     try:
         worker.render_pose(0, moved, np.array([pose, moved]))  # a blurred frame before, as in a worker's stream
         _, on, timings = worker.render_pose(1, pose, np.array([pose, moved]))
     finally:
         worker.close()
-    worker = FrameWorker(config, scene, None, "cycles")
+    worker = FrameWorker(config, scene)
     try:
         _, off, _ = worker.render_pose(1, pose)
     finally:
@@ -199,7 +197,7 @@ def test_a_record_from_before_motion_blur_stands_where_blur_would_not_have_chang
     from renderloop.rundir import files, names
     from renderloop.rundir.models import RenderRecord
 
-    camera = _tiny_config().camera.model_copy(update={"sensor": SensorConfig(enabled=enabled)}).model_dump(mode="json")
+    camera = _tiny_config().override({"camera": {"sensor": SensorConfig(enabled=enabled)}}).camera.model_dump(mode="json")
     today = RenderRecord(backend=backend, frames=3, poses_sha256="p", scene_sha256="s", seed=1, camera=camera, renderer={"bounces": {}, "raster": {}})
     before = {**camera, "sensor": {key: value for key, value in camera["sensor"].items() if key != "exposure_time"}}
     files.write_model(tmp_path / names.RENDER_RECORD, today.model_copy(update={"camera": before}))

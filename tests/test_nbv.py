@@ -349,7 +349,7 @@ def test_the_candidates_of_a_plant_in_a_row_leave_out_the_views_into_its_neighbo
 
 
 def test_views_of_a_tall_canopy_reach_up_it_and_look_near_their_own_height_while_a_short_one_keeps_three(tmp_path, greenhouse):
-    from renderloop.config import Config, load_config
+    from renderloop.config import load_config
     from renderloop.loop.nbv import heights
     from renderloop.loop.viewpoints import aim_point
     from renderloop.scene.generate import generate_scene
@@ -357,9 +357,7 @@ def test_views_of_a_tall_canopy_reach_up_it_and_look_near_their_own_height_while
     _, _, _, short = greenhouse
     assert heights(short) == (-0.2, 0.0, 0.2)
     assert np.allclose(aim_point(short, camera_position(short, View(0.0, 0.2, 0.5))), scan_target(short))
-    data = load_config("greenhouse").model_dump(mode="json")
-    data["plants"]["pepper_style"]["leaves"] = [20, 30]
-    config = Config.model_validate(data)
+    config = load_config("greenhouse").override({"plants": {"pepper_style": {"leaves": [20, 30]}}})
     scene = generate_scene(config)
     world = tmp_path / "world.xml"
     world.write_text(world_xml(scene, config), encoding="utf-8")

@@ -24,10 +24,7 @@ SIMPLE_SCENE_SHA256 = {
 
 
 def pepper_config(preset: str = "demo", seed: int = 0, **camera) -> Config:
-    data = load_config(preset, seed=seed).model_dump(mode="json")
-    data["plants"]["style"] = "pepper"
-    data["camera"].update(camera)
-    return Config.model_validate(data)
+    return load_config(preset, seed=seed).override({"plants": {"style": "pepper"}, "camera": camera})
 
 
 @pytest.fixture(scope="module")
@@ -74,9 +71,7 @@ def test_pepper_plants_have_60_to_200_leaves_of_6_to_20_cm_inside_their_box(pepp
 
 def test_a_leaf_tint_lightens_each_plants_leaves_towards_yellow_green_and_moves_no_leaf(pepper_scene):
     config, scene = pepper_scene
-    data = config.model_dump(mode="json")
-    data["plants"]["pepper_style"]["leaf_tint"] = [0.0, 1.0]
-    tinted = generate_scene(Config.model_validate(data))
+    tinted = generate_scene(config.override({"plants": {"pepper_style": {"leaf_tint": [0.0, 1.0]}}}))
     shape = ("base", "direction", "up", "length", "width", "template", "dust")
     tints = []
     for plain, light in zip(scene.plants, tinted.plants):
@@ -175,8 +170,7 @@ def test_a_cycles_render_of_a_pepper_plant_shows_every_fruit_from_its_side():
     from renderloop.render.cycles import CyclesRenderer
     from renderloop.robot.kinematics import look_at
 
-    config = pepper_config(width=160, height=120)
-    config = config.model_copy(update={"renderer": config.renderer.model_copy(update={"samples": 1, "denoise": False})})
+    config = pepper_config(width=160, height=120).override({"renderer": {"samples": 1, "denoise": False}})
     scene = generate_scene(config)
     plant = scene.plants[1]
     high = np.array(plant.bounds.max)

@@ -133,28 +133,22 @@ def test_the_check_refuses_trajectories_that_leave_the_room_or_hit_a_table(paper
 
 def test_take_off_point_by_a_wall_is_refused(paper):
     config, scene = paper
-    data = config.model_dump()
-    data["robot"]["home"] = (5.9, 0.0, 0.0)
+    by_the_wall = config.override({"robot": {"home": (5.9, 0.0, 0.0)}})
     with pytest.raises(UserError, match="transit start"):
-        plan_waypoints(scene, type(config).model_validate(data))
+        plan_waypoints(scene, by_the_wall)
 
 
 def test_a_camera_pitch_the_arm_cannot_reach_is_a_planning_error(paper):
     config, scene = paper
-    data = config.model_dump()
-    data["robot"]["arm"]["joint_limits"] = (-0.2, 0.2)
+    stiff = config.override({"robot": {"arm": {"joint_limits": (-0.2, 0.2)}}})
     with pytest.raises(UserError, match=r"cannot aim the camera at plant \d+: joint q3 = .* outside the limits"):
-        plan_waypoints(scene, type(config).model_validate(data))
+        plan_waypoints(scene, stiff)
 
 
 def test_a_tall_canopy_is_scanned_in_bands_each_round_its_own_height_up_one_plant_and_down_the_next():
-    from renderloop.config import Config
     from renderloop.scene.generate import generate_scene
 
-    data = load_config("greenhouse").model_dump(mode="json")
-    data["plants"]["pepper_style"]["leaves"] = [20, 30]
-    data["planner"].update(bands=3)
-    config = Config.model_validate(data)
+    config = load_config("greenhouse").override({"plants": {"pepper_style": {"leaves": [20, 30]}}, "planner": {"bands": 3}})
     scene = generate_scene(config)
     arm, per = config.robot.arm, config.planner.points_per_ellipse
     first_line, walked = [], []

@@ -14,6 +14,7 @@ from conftest import fly_demo_raster
 
 from renderloop.config import load_config
 from renderloop.errors import UserError
+from renderloop.parallel import Executor
 from renderloop.render.camera import Intrinsics, to_gl_camera
 from renderloop.render.frames import read_frame
 from renderloop.render.raster import RasterRenderer
@@ -149,8 +150,8 @@ def test_two_workers_and_ray_give_the_same_files(flown: Path, tmp_path: Path):
     for copy in copies.values():
         shutil.copytree(flown, copy)
     run_render(copies["one"], config)
-    run_render(copies["two"], config, workers=2)
-    run_render(copies["ray"], config, workers=2, executor="ray")
+    run_render(copies["two"], config, executor=Executor(workers=2))
+    run_render(copies["ray"], config, executor=Executor(kind="ray", workers=2))
     assert _files(copies["two"]) == _files(copies["one"])
     assert _files(copies["ray"]) == _files(copies["one"])
 
@@ -184,7 +185,7 @@ def test_unknown_backend_and_unanswering_ray(flown: Path):
     with pytest.raises(UserError, match="unknown backend 'opengl'"):
         with_backend(config, "opengl")
     with pytest.raises(UserError, match="--address 127.0.0.1:1: no Ray cluster answers there"):
-        run_render(flown, config, executor="ray", address="127.0.0.1:1")
+        run_render(flown, config, executor=Executor(kind="ray", address="127.0.0.1:1"))
 
 
 def test_a_render_that_cannot_fit_on_the_disk_is_refused_before_its_first_frame(flown: Path, monkeypatch):
@@ -221,8 +222,7 @@ def test_the_raster_look_without_shadows_or_antialiasing_changes_the_colour_alon
     before = renderer.render(pose)
 
     def render(**look) -> np.ndarray:
-        update = {"raster": config.renderer.raster.model_copy(update=look)}
-        with RasterRenderer(scene, config.model_copy(update={"renderer": config.renderer.model_copy(update=update)}), intrinsics) as other:
+        with RasterRenderer(scene, config.override({"renderer": {"raster": look}}), intrinsics) as other:
             frame = other.render(pose)
         assert np.array_equal(before.depth, frame.depth) and np.array_equal(before.mask, frame.mask)
         return frame.rgb.astype(int).sum(axis=2) - before.rgb.astype(int).sum(axis=2)
@@ -239,7 +239,7 @@ def test_the_render_device_is_not_part_of_the_record(flown: Path):
 
     config = read_config(flown)
     assert run_render(flown, config)
-    gpu = config.model_copy(update={"renderer": config.renderer.model_copy(update={"device": "gpu"})})
+    gpu = config.override({"renderer": {"device": "gpu"}})
     check_config(flown, gpu)  # the same run
     assert not run_render(flown, gpu)  # the same frames: nothing to redo
     assert "device" not in json.loads((flown / "render.json").read_text())["renderer"]

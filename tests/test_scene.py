@@ -98,18 +98,15 @@ def test_demo_has_mixed_ripeness_and_every_plant_bears(demo):
 
 
 def test_too_many_peppers_for_the_plant_is_a_user_error():
-    config = load_config("demo").model_copy(deep=True)
-    data = config.model_dump()
-    data["plants"]["peppers"]["per_side"] = (60, 60)
+    crowded = load_config("demo").override({"plants": {"peppers": {"per_side": (60, 60)}}})
     with pytest.raises(UserError, match="plants.peppers.per_side"):
-        generate_scene(type(config).model_validate(data))
+        generate_scene(crowded)
 
 
 def test_overlapping_tables_are_refused():
-    data = load_config("demo").model_dump()
-    data["greenhouse"]["tables"] = [(1.0, 2.5), (1.2, 2.5)]
+    overlapping = load_config("demo").override({"greenhouse": {"tables": [(1.0, 2.5), (1.2, 2.5)]}})
     with pytest.raises(UserError, match="tables 0 and 1 overlap"):
-        generate_scene(type(load_config("demo")).model_validate(data))
+        generate_scene(overlapping)
 
 
 def test_one_object_list_and_one_material_table_for_every_view(demo):

@@ -72,7 +72,7 @@ def test_a_run_with_the_sensor_on_renders_rgb_sensor_and_detects_on_it(complete_
     run = tmp_path / "run"
     shutil.copytree(complete_run, run)
     config = files.read_config(run)
-    config = config.model_copy(update={"camera": config.camera.model_copy(update={"sensor": SensorConfig(enabled=True)})})
+    config = config.override({"camera": {"sensor": SensorConfig(enabled=True)}})
     files.write_config(run, config)
     assert run_render(run, config)  # another camera: the render starts over
     rendered = sorted(p.name for p in (run / names.RGB_SENSOR).iterdir())

@@ -109,7 +109,7 @@ def all_round(scene) -> dict[int, PlantEvidence]:
 def counted_run(demo, tmp_path_factory) -> tuple[Config, Path]:
     """A run directory of synthetic detections counted with the intervals."""
     config, scene = demo
-    config = config.model_copy(update={"counting": FAST})
+    config = config.override({"counting": FAST})
     run = make_run(tmp_path_factory.mktemp("uncertainty") / "run", config, scene, synthetic_points(scene))
     assert run_count(run, config)
     return config, run
@@ -297,7 +297,7 @@ def test_redraw_zero_is_the_estimate_and_counts_json_keeps_the_count_of_count_ro
 def test_the_same_seed_gives_the_same_intervals_and_bytes(demo, counted_run, tmp_path: Path):
     """counts.json with its intervals, byte for byte (the online test compares two computations' distributions)."""
     config, scene = demo
-    config = config.model_copy(update={"counting": FAST})
+    config = config.override({"counting": FAST})
     _, counted = counted_run
     again = make_run(tmp_path / "again", config, scene, synthetic_points(scene))
     run_count(again, config)
@@ -319,7 +319,7 @@ def test_counts_json_written_before_intervals_still_validates(counted_run):
 
 def test_the_online_counter_gives_the_batch_intervals(demo, tmp_path: Path):
     config, scene = demo
-    config: Config = config.model_copy(update={"counting": FAST})
+    config: Config = config.override({"counting": FAST})
     scan = Scan(seed=4)
     for plant in scene.plants:
         fruit = [np.array(p.center) for p in scene.peppers_of(plant.id) if p.ripe]

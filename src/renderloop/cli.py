@@ -11,7 +11,7 @@ import sys
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.console import Console
@@ -20,7 +20,9 @@ from typer.exceptions import Abort as TyperAbort
 from typer.exceptions import TyperException
 
 from renderloop import __version__
-from renderloop.config import PRESETS, DetectorConfig, config_schema, load_config
+from renderloop.config import PRESETS, Config, DetectorConfig, config_schema, load_config
+from renderloop.config.fields import checked
+from renderloop.config.training import BACKBONES, DEFAULT_BACKBONE, TrainSettings
 from renderloop.dataset.scenes import DatasetSpec
 from renderloop.errors import UserError
 from renderloop.io.atomic import final_path
@@ -134,12 +136,13 @@ def render(
     force: Force = False,
 ) -> None:
     """Render RGB, depth (planar, uint16 at 5000 per metre) and pepper instance masks at every pose of groundtruth.txt."""
+    from renderloop.parallel import Executor as Parallel
     from renderloop.render.stage import run_render, with_backend
     from renderloop.rundir.files import read_config
 
     config = with_backend(read_config(run_dir), backend)
     with _progress_bar("render") as progress:
-        made = run_render(run_dir, config, force, progress, workers, executor, address)
+        made = run_render(run_dir, config, force, progress, Parallel.of(executor, workers, address))
     typer.echo(f"render: {'wrote' if made else 'already complete in'} {run_dir}")
 
 
@@ -167,12 +170,13 @@ def dataset(
 ) -> None:
     """Render a COCO detection dataset (ripe, unripe) of random greenhouse views with Cycles, boxes from the masks."""
     from renderloop.dataset.build import build_dataset
+    from renderloop.parallel import Executor as Parallel
 
     spec = DatasetSpec(seed=seed, width=width, height=width * 3 // 4, views_per_scene=views_per_scene, distance=distance,
                        sensor=sensor, styles=_names(styles), environments=_names(environments), clutter=clutter, close=close,
                        picked=picked)
     with _progress_bar("dataset") as progress:
-        made = build_dataset(out, images, spec, workers, executor, address, force, progress)
+        made = build_dataset(out, images, spec, Parallel.of(executor, workers, address), force, progress)
     typer.echo(f"dataset: rendered {made} images, {images} in {out}")
 
 
@@ -192,27 +196,40 @@ def dataset_runs(
     typer.echo(f"dataset: {made} frames of {len(run_dirs)} runs in {out}")
 
 
+def _setting(name: str) -> Any:
+    """The `train` option of a TrainSettings field: the model's description and default; a value not given (None) is
+    the model's default, and the model checks the range of one given."""
+    field = TrainSettings.model_fields[name]
+    return typer.Option(help=f"{field.description} Default: {field.default}.", show_default=False)
+
+
 @app.command()
 def train(
-    dataset_dirs: Annotated[list[Path], typer.Argument(help="Dataset folders made by `renderloop dataset`; several train together.",
-                                                       show_default=False)],
     out: Annotated[Path, typer.Option(help="ONNX model to write; its checkpoint is OUT with .ckpt.")],
-    epochs: Annotated[int, typer.Option(min=1, max=100_000)] = 30,
-    batch_size: Annotated[int, typer.Option(min=1, max=4096)] = 32,
-    learning_rate: Annotated[float, typer.Option(min=1e-7, max=1.0)] = 3e-3,
-    warmup_steps: Annotated[int, typer.Option(min=0, help="Steps of linear learning-rate warm-up before the cosine decay; "
-                                              "fewer for a short fine-tune, or it never decays.")] = 200,
-    seed: Annotated[int, typer.Option(min=0)] = 0,
+    dataset_dirs: Annotated[list[Path] | None, typer.Argument(help="Dataset folders made by `renderloop dataset`; several "
+                                                              "train together.", show_default=False)] = None,
+    epochs: Annotated[int | None, _setting("epochs")] = None,
+    batch_size: Annotated[int | None, _setting("batch_size")] = None,
+    learning_rate: Annotated[float | None, _setting("learning_rate")] = None,
+    warmup_steps: Annotated[int | None, _setting("warmup_steps")] = None,
+    seed: Annotated[int | None, _setting("seed")] = None,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "auto",
     loader_workers: Annotated[int, typer.Option(min=0, max=64, help="Data-loading processes.")] = 1,
     init: Annotated[Path | None, typer.Option(help="Start from these weights (fine-tuning): an earlier run's .ckpt, a "
                                               "renderloop ONNX detector, or 'shipped' for the model in the package.")] = None,
+    backbone: Annotated[str | None, typer.Option(help=f"{TrainSettings.model_fields['backbone'].description} Default: "
+                                                 f"--init's, else {DEFAULT_BACKBONE}.")] = None,
+    photos: Annotated[Path | None, typer.Option(help="Your own labelled photos to train on too (a folder; with --coco): "
+                                                "renders first, then a fine-tune with these, --init the model.")] = None,
+    coco: Annotated[Path | None, typer.Option(help="With --photos: their COCO labels, as `score-photos` reads them.")] = None,
+    photo_class: Annotated[str | None, typer.Option(help="With --photos: ripe or unripe, the class of boxes whose "
+                                                    "category names no ripeness (a one-class set).")] = None,
 ) -> None:
-    """Train the pepper detector (SSDlite MobileNetV3) from scratch or --init weights; resumes from its checkpoint; exports ONNX."""
+    """Train the pepper detector (SSDlite) from ImageNet or --init weights; resumes from its checkpoint; exports ONNX."""
     from renderloop.perception.detector import shipped_model
 
     try:
-        from renderloop.perception.training.train import TrainSettings, train_detector
+        from renderloop.perception.training.train import Photos, backbone_of_init, train_detector
     except ImportError as error:
         why = f"{error.name} is missing" if error.name else str(error)  # a module that is there but fails to load has no name
         raise UserError(f"training needs the train extra: pip install 'renderloop[train]' ({why})") from None
@@ -220,10 +237,38 @@ def train(
         raise UserError(f"--device {device}: choose from auto, cpu, cuda")
     if init is not None and str(init) == "shipped":
         init = shipped_model()
-    settings = TrainSettings(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate, warmup_steps=warmup_steps, seed=seed)
-    record = train_detector(dataset_dirs, out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True), init=init)
+    if (photos is None) != (coco is None):
+        raise UserError("--photos and --coco go together: the photo folder and its COCO labels")
+    if photo_class is not None and photo_class not in ("ripe", "unripe"):
+        raise UserError(f"--photo-class {photo_class}: choose from ripe, unripe")
+    if backbone is not None and backbone not in BACKBONES:
+        raise UserError(f"--backbone {backbone}: choose from {', '.join(BACKBONES)}")
+    if backbone is None and init is not None:
+        backbone = backbone_of_init(init)
+    given = {"epochs": epochs, "batch_size": batch_size, "learning_rate": learning_rate, "warmup_steps": warmup_steps,
+             "seed": seed, "backbone": backbone}
+    settings = checked(TrainSettings, "train", **{name: value for name, value in given.items() if value is not None})
+    own = Photos(photos, coco, photo_class) if photos is not None else None
+    record = train_detector(dataset_dirs or [], out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True),
+                            init=init, photos=own)
     last = record["history"][-1] if record["history"] else {}
     typer.echo(f"train: wrote {out} (val mAP@0.5 {last.get('map50', float('nan')):.3f})")
+
+
+def _detector_options(model: Path | None, threshold: float | None, windows: str | None, mirror: bool | None) -> dict:
+    """The detector settings of `--model`, `--threshold`, `--windows` and `--mirror` as config fields; None: not given."""
+    from renderloop.perception.tiling import layout_names, parse_layouts
+
+    return {"model": model, "score_threshold": threshold, "windows": None if windows is None else layout_names(parse_layouts(windows)),
+            "mirror": mirror}
+
+
+def _photo_detector(given: dict) -> DetectorConfig:
+    """The detector settings of a verb on photos, or on runs it does not read the config of: the default config's,
+    with those given on the command line."""
+    from renderloop.perception.stage import with_detector
+
+    return with_detector(Config(), **given).detector
 
 
 @app.command()
@@ -240,26 +285,21 @@ def detect(
     """Detect peppers: detections.json (boxes, scores, ripe/unripe, 3D world points) of a run, or of a photo folder."""
     from renderloop.perception.photos import detect_photos
     from renderloop.perception.stage import run_detect, with_detector
-    from renderloop.perception.tiling import layout_names, parse_layouts
     from renderloop.rundir.files import read_config
 
     if (run_dir is None) == (images is None):
         raise UserError("give either a run directory or --images FOLDER --out FILE.json")
+    given = _detector_options(model, threshold, windows, mirror)
     if images is not None:
         if out is None:
             raise UserError("--images needs --out FILE.json")
-        defaults = DetectorConfig()
-        layouts = defaults.layouts if windows is None else parse_layouts(windows)
         with _progress_bar("detect") as progress:
-            count = detect_photos(images, out, model, defaults.score_threshold if threshold is None else threshold,
-                                  layouts, defaults.mirror if mirror is None else mirror, force, progress)
+            count = detect_photos(images, out, _photo_detector(given), force, progress)
         typer.echo(f"detect: {count} photos -> {out}")
         return
-    layouts = None if windows is None else layout_names(parse_layouts(windows))
-    overrides = {"model": model, "score_threshold": threshold, "windows": layouts, "mirror": mirror}
-    config = with_detector(read_config(run_dir), **overrides)
+    config = with_detector(read_config(run_dir), **given)
     with _progress_bar("detect") as progress:  # settings given on the command line mean: detect again with them
-        made = run_detect(run_dir, config, force or any(v is not None for v in overrides.values()), progress)
+        made = run_detect(run_dir, config, force or any(v is not None for v in given.values()), progress)
     typer.echo(f"detect: {'wrote' if made else 'already complete in'} {run_dir}")
 
 
@@ -274,13 +314,11 @@ def choose_threshold(
     """Choose the detector's score threshold on rendered runs: the lowest with at most --max-false of its detections false."""
     from renderloop.perception.detector import Detector
     from renderloop.perception.threshold import choose, format_scores, score_thresholds, search_run
-    from renderloop.perception.tiling import parse_layouts
 
-    defaults = DetectorConfig()
-    layouts = defaults.layouts if windows is None else parse_layouts(windows)
-    detector = Detector(model)
+    settings = _photo_detector(_detector_options(model, None, windows, mirror))
+    detector = Detector(settings.model)
     with _progress_bar("threshold") as progress:
-        runs = [search_run(run_dir, detector, layouts, defaults.mirror if mirror is None else mirror, progress) for run_dir in run_dirs]
+        runs = [search_run(run_dir, detector, settings, progress) for run_dir in run_dirs]
     scores = score_thresholds(runs)
     chosen = choose(scores, max_false)
     typer.echo(format_scores(scores, chosen))
@@ -335,16 +373,16 @@ def evaluate_seeds(
     from renderloop.evaluation.runner import evaluate
     from renderloop.evaluation.seeds import parse_seeds
     from renderloop.evaluation.table import EVAL_CSV, EVAL_JSON, format_table, write_eval
+    from renderloop.parallel import Executor as Parallel
 
-    if executor not in ("local", "ray"):
-        raise UserError(f"--executor {executor}: choose from local, ray")
+    parallel = Parallel.of(executor, workers, address)
     seed_list = parse_seeds(seeds)
     kinds = _names(mission) if mission else None
     for kind in kinds or ():
         load_config(preset, config, mission=kind)  # an unknown mission is refused in one line, before any run
     base = load_config(preset, config)
     with _progress_bar("eval") as progress:
-        scenarios = evaluate(base, seed_list, out, workers, executor, address, force, progress, kinds)
+        scenarios = evaluate(base, seed_list, out, parallel, force, progress, kinds)
     write_eval(out, scenarios)
     typer.echo(format_table(scenarios))
     typer.echo(f"eval: wrote {out / EVAL_CSV} and {out / EVAL_JSON}")
@@ -382,13 +420,10 @@ def score_photo_folder(
     """Score the detector on your labelled photos: recall, precision, F1, AP@0.5 (pycocotools) and the curve over thresholds."""
     from renderloop.perception.photo_score import OUTPUTS as PHOTO_SCORE_FILES
     from renderloop.perception.photo_score import score_photos, summary
-    from renderloop.perception.tiling import parse_layouts
 
-    defaults = DetectorConfig()
-    layouts = defaults.layouts if windows is None else parse_layouts(windows)
+    settings = _photo_detector(_detector_options(model, threshold, windows, mirror))
     with _progress_bar("score-photos") as progress:
-        record = score_photos(folder, coco, out, model, defaults.score_threshold if threshold is None else threshold,
-                              layouts, defaults.mirror if mirror is None else mirror, force, progress)
+        record = score_photos(folder, coco, out, settings, force, progress)
     for line in summary(record):
         typer.echo(f"score-photos: {line}")
     typer.echo(f"score-photos: wrote {out} ({', '.join(sorted(PHOTO_SCORE_FILES))})")
@@ -426,21 +461,30 @@ def run(out: Out, preset: Preset = "demo", config: ConfigFile = None, seed: Seed
         typer.echo(line)
 
 
+def _one_line(message: str) -> str:
+    """`message` with every character that is not printable (a newline or escape in a path) written as its Python
+    escape, as `errors.field_path` quotes a key: an error is one line whatever the user's paths hold."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in message)
+
+
+def _error(message: str, code: int) -> None:
+    print(f"renderloop: error: {_one_line(message)}", file=sys.stderr)
+    sys.exit(code)
+
+
 def main() -> None:
     try:
         code = app(standalone_mode=False)  # click's usage errors come here instead of a usage block
     except TyperException as error:  # an option out of range, a missing one: bad input like any other
         message = " ".join(error.format_message().split())
         if message:  # empty after the help that no arguments print
-            print(f"renderloop: error: {message}", file=sys.stderr)
+            _error(message, 2)
         sys.exit(2)
     except TyperAbort:  # Ctrl-C
         sys.exit(130)
     except UserError as error:
-        print(f"renderloop: error: {error}", file=sys.stderr)
-        sys.exit(2)
+        _error(str(error), 2)
     except OSError as error:  # the machine, not the input: a full disk, a directory we may not write
-        where = f" {final_path(Path(error.filename))}:" if error.filename else ""
-        print(f"renderloop: error:{where} {error.strerror or error}", file=sys.stderr)
-        sys.exit(1)
+        where = f"{final_path(Path(error.filename))}: " if error.filename else ""
+        _error(f"{where}{error.strerror or error}", 1)
     sys.exit(code if isinstance(code, int) else 0)

@@ -23,6 +23,7 @@ from renderloop.config import Config
 from renderloop.counting import stage as count_stage
 from renderloop.loop import stage as online_stage
 from renderloop.perception import stage as detect_stage
+from renderloop.perception.detector import Detector
 from renderloop.planning import stage as plan_stage
 from renderloop.render import stage as render_stage
 from renderloop.rundir.files import record_timing
@@ -46,9 +47,16 @@ def stages_of(config: Config) -> tuple[Stage, ...]:
     return ONLINE_STAGES if config.mission.online else STAGES
 
 
+def check_inputs(config: Config) -> None:
+    """Refuse, in one line, what the config names that a later stage would refuse only after the ones before it had
+    run (minutes to an hour): the detector model, loaded and probed as the detect stage loads it."""
+    Detector(config.detector.model)
+
+
 def run_pipeline(run_dir: Path, config: Config, force: bool = False, console: Console | None = None) -> dict[str, float]:
     """Run every stage; returns the seconds each one took (0 when it was skipped)."""
     claim(run_dir, write=False)  # a directory that is not ours is refused before the progress display starts
+    check_inputs(config)  # before the first stage writes anything
     console = console or Console(stderr=True)
     seconds: dict[str, float] = {}
     columns = (TextColumn("{task.description:<28}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),

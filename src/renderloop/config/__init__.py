@@ -1,7 +1,9 @@
 """Typed configuration of a run: one pydantic model per subsystem, presets, YAML in and out.
 
 `Config` and the loading are here; the sections live by subsystem (`scene`, `flight`, `camera`, `perception`,
-`mission`) on the building blocks of `fields`, and every model is importable from `renderloop.config`.
+`mission`) on the building blocks of `fields`, and every model is importable from `renderloop.config`. `training`
+holds the settings of `renderloop train`, bounded the same way but outside a run's `Config`. A config is changed
+with `Config.override`, which validates the change as a config file is validated.
 
 The defaults are the numbers of the reference work (docs/design.md), so the `paper`
 preset is almost empty; `demo` shrinks the greenhouse to one table. A user YAML
@@ -17,12 +19,14 @@ from typing import Any
 
 import yaml
 from pydantic import Field, ValidationError, model_validator
+from pydantic_core import to_jsonable_python
 
 from renderloop.config.camera import BouncesConfig, CameraConfig, DepthNoiseConfig, RasterConfig, RendererConfig, SensorConfig
 from renderloop.config.fields import MAX_LEAVES, Count, Strict
 from renderloop.config.flight import PID, ArmConfig, ControllerConfig, PlannerConfig, RobotConfig, RotorConfig
 from renderloop.config.mission import AdaptiveConfig, MissionConfig
 from renderloop.config.perception import CountingConfig, DetectorConfig, IntervalConfig
+from renderloop.config.training import TrainSettings
 from renderloop.config.scene import (
     RIPE_COLORS,
     EnvironmentConfig,
@@ -34,13 +38,14 @@ from renderloop.config.scene import (
     PotConfig,
 )
 from renderloop.errors import UserError, problem
+from renderloop.io.bounded import load_yaml
 
 __all__ = [
     "PID", "PRESETS", "RIPE_COLORS", "AdaptiveConfig", "ArmConfig", "BouncesConfig",
     "CameraConfig", "Config", "ControllerConfig", "CountingConfig", "DepthNoiseConfig", "DetectorConfig",
     "EnvironmentConfig", "GreenhouseConfig", "HighWireConfig", "IntervalConfig", "MissionConfig", "PepperConfig",
     "PepperStyleConfig", "PlannerConfig", "PlantConfig", "PotConfig", "RasterConfig", "RendererConfig", "RobotConfig",
-    "RotorConfig", "SensorConfig", "config_schema", "deep_merge", "load_config", "load_resolved", "preset_overrides",
+    "RotorConfig", "SensorConfig", "TrainSettings", "config_schema", "deep_merge", "load_config", "load_resolved", "preset_overrides",
     "read_config_file", "validate",
 ]
 
@@ -70,6 +75,12 @@ class Config(Strict):
                              f"served by a {self.controller.rate_hz:g} Hz controller")
         return self
 
+    def override(self, patch: dict[str, Any], source: str | None = None) -> Config:
+        """A new config: `patch` deep-merged over this one's fields, then validated as a config file is, so a value out
+        of its range or a key no field has is the one-line UserError the CLI prints (`source: field: problem`, or
+        `field: problem` without a source). A model in the patch is validated again as its fields."""
+        return validate(deep_merge(self.model_dump(mode="json"), to_jsonable_python(patch)), source)
+
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False, default_flow_style=None)
 
@@ -83,12 +94,7 @@ PRESETS = ("demo", "paper", "greenhouse")
 
 
 def _read_yaml_mapping(text: str, source: str) -> dict[str, Any]:
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" (line {mark.line + 1})" if mark is not None else ""
-        raise UserError(f"{source}: not valid YAML{where}") from None
+    data = load_yaml(text, source)  # depth and size bounded before parsing: one line, never a RecursionError
     if data is None:
         return {}
     if not isinstance(data, dict):
@@ -124,11 +130,11 @@ def deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]
     return merged
 
 
-def validate(data: dict[str, Any], source: str) -> Config:
+def validate(data: dict[str, Any], source: str | None) -> Config:
     try:
         return Config.model_validate(data)
     except ValidationError as exc:
-        raise UserError(f"{source}: {problem(exc)}") from None
+        raise UserError(f"{source}: {problem(exc)}" if source else problem(exc)) from None
 
 
 def load_config(preset: str = "demo", config_file: Path | None = None, seed: int | None = None,

@@ -7,9 +7,11 @@ missing decimal point, a unit off by 1000) before it costs a long run or crashes
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any
+from typing import Annotated, Any, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from renderloop.errors import UserError, problem
 
 
 def Real(low: float, high: float, *, low_open: bool = False, high_open: bool = False) -> Any:
@@ -49,6 +51,17 @@ MAX_CAMERA_RATE_HZ = 100.0
 
 class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+Settings = TypeVar("Settings", bound=BaseModel)
+
+
+def checked(model: type[Settings], source: str, **values: object) -> Settings:
+    """`model` of `values`, or the one-line UserError the CLI prints for a config field: `source: field: problem`."""
+    try:
+        return model(**values)
+    except ValidationError as error:
+        raise UserError(f"{source}: {problem(error)}") from None
 
 
 def ordered_range(value: tuple[float, float], name: str) -> None:

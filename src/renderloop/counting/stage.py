@@ -148,7 +148,7 @@ def run_counting(config: Config) -> CountingConfig:
     if config.mission.kind != "adaptive":
         return config.counting
     update = {name: value for name in ("interval", "lone_credit") if (value := getattr(adaptive, name)) is not None}
-    return config.counting.model_copy(update=update)
+    return config.override({"counting": update}).counting
 
 
 def _current(run_dir: Path, config: Config) -> bool:
@@ -190,4 +190,4 @@ run_count = STAGE.run
 
 def without_layout(config: Config) -> Config:
     """`renderloop count --no-layout`: nearest table and LocalOutlierFactor instead of the plant volumes."""
-    return config.model_copy(update={"counting": config.counting.model_copy(update={"use_layout": False})})
+    return config.override({"counting": {"use_layout": False}})

@@ -16,10 +16,7 @@ from __future__ import annotations
 
 import io
 import json
-import os
-from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from multiprocessing import get_context
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -34,8 +31,9 @@ from renderloop.dataset.scenes import DATASET_SENSOR, FORMAT_VERSION, PICKED_VIE
 from renderloop.dataset.views import close_view, picked_view, random_view
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_bytes, write_json
+from renderloop.parallel import LOCAL, Executor, map_tasks
 from renderloop.render.camera import Intrinsics
-from renderloop.render.executor import COLOUR_SENSOR_STREAM, ray_session, spawn_safely
+from renderloop.render.executor import COLOUR_SENSOR_STREAM
 from renderloop.render.sensor import sensor_rgb
 from renderloop.rundir import ownership
 from renderloop.scene.objects import greenhouse_objects, neighbour_fruit
@@ -63,15 +61,15 @@ def jpeg_bytes(rgb: np.ndarray) -> bytes:
     return buffer.getvalue()
 
 
-def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[int], threads: int = 0) -> Rendered:
-    """Render the given views of one dataset scene: (image index, JPEG bytes, label record) each."""
+def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[int], executor: Executor = LOCAL) -> Rendered:
+    """Render the given views of one dataset scene, on a worker of `executor`: (image index, JPEG bytes, label record)
+    each."""
     from renderloop.render.cycles import (
         CyclesRenderer,  # bpy only where frames are rendered
     )
 
     config, scene = dataset_scene(spec, scene_index)
-    if threads:
-        config = config.model_copy(update={"renderer": config.renderer.model_copy(update={"threads": threads})})
+    config = executor.share_cores(config)
     intrinsics = Intrinsics.from_config(config.camera)
     clutter_rng = np.random.default_rng(np.random.SeedSequence([spec.seed, CLUTTER_STREAM, scene_index]))
     boards = standing_boards(scene, clutter_rng) if spec.clutter else []
@@ -159,37 +157,12 @@ def _pending(out: Path, spec: DatasetSpec, images: int) -> dict[int, list[int]]:
     return todo
 
 
-def _in_processes(spec: DatasetSpec, todo: dict[int, list[int]], workers: int) -> Iterator[Rendered]:
-    if workers <= 1:
-        for scene_index, views in todo.items():
-            yield render_scene_views(spec, scene_index, views)
-        return
-    threads = max(1, (os.cpu_count() or 1) // workers)  # the workers share the cores
-    with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
-        with spawn_safely():  # the workers start on the first submissions
-            futures = [pool.submit(render_scene_views, spec, s, v, threads) for s, v in todo.items()]
-        for future in as_completed(futures):
-            yield future.result()
-
-
-def _on_ray(spec: DatasetSpec, todo: dict[int, list[int]], workers: int, address: str | None) -> Iterator[Rendered]:
-    import ray
-
-    with ray_session(workers, address):
-        task = ray.remote(num_cpus=1)(render_scene_views)
-        pending = [task.remote(spec, s, v, 1) for s, v in todo.items()]
-        while pending:
-            [done], pending = ray.wait(pending, num_returns=1)
-            yield ray.get(done)
-
-
-def build_dataset(out: Path, images: int, spec: DatasetSpec, workers: int = 1, executor: str = "local",
-                  address: str | None = None, force: bool = False, progress: Progress | None = None) -> int:
-    """Render the missing images of the first `images`, then (re)write the COCO files; returns images rendered."""
+def build_dataset(out: Path, images: int, spec: DatasetSpec, executor: Executor = LOCAL, force: bool = False,
+                  progress: Progress | None = None) -> int:
+    """Render the missing images of the first `images`, a scene a task, then (re)write the COCO files; returns images
+    rendered."""
     if images < 1:
         raise UserError(f"--images {images}: need at least one image")
-    if executor not in ("local", "ray"):
-        raise UserError(f"unknown executor {executor!r} (choose from: local, ray)")
     out = Path(out)
     _check_spec(out, spec, force)
     todo = _pending(out, spec, images)
@@ -197,8 +170,7 @@ def build_dataset(out: Path, images: int, spec: DatasetSpec, workers: int = 1, e
     if progress:
         progress(done, images)
     rendered = 0
-    batches = _on_ray(spec, todo, workers, address) if executor == "ray" else _in_processes(spec, todo, workers)
-    for batch in batches:
+    for batch in map_tasks(executor, render_scene_views, [(spec, s, v, executor) for s, v in todo.items()]):
         for index, jpeg, record in batch:
             write_bytes(out / "images" / image_name(index, "jpg"), jpeg)
             write_json(out / "labels" / image_name(index, "json"), record)

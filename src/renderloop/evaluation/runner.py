@@ -10,21 +10,15 @@ from __future__ import annotations
 
 import io
 import re
-from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from multiprocessing import get_context
+from collections.abc import Callable
 from pathlib import Path
 
 from rich.console import Console
 
 from renderloop.config import Config
 from renderloop.evaluation.table import EVAL_CSV, EVAL_JSON, Scenario, scenario
-from renderloop.pipeline import run_pipeline
-from renderloop.render.executor import (
-    ray_session,
-    spawn_safely,
-    threads_per_worker,
-)
+from renderloop.parallel import LOCAL, Executor, map_tasks
+from renderloop.pipeline import check_inputs, run_pipeline
 from renderloop.rundir import files, ownership
 from renderloop.rundir.stage import claim
 
@@ -49,45 +43,20 @@ def run_seed(out: Path, config: Config, force: bool) -> Scenario:
     return scenario(config.seed, config.mission.kind, run_dir)
 
 
-def _local(out: Path, configs: list[Config], force: bool, workers: int) -> Iterator[Scenario]:
-    if workers <= 1:
-        for config in configs:
-            yield run_seed(out, config, force)
-        return
-    # spawn, not fork: the runs render with Blender and MuJoCo, neither survives a fork
-    with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
-        with spawn_safely():
-            futures = [pool.submit(run_seed, out, config, force) for config in configs]
-        for future in as_completed(futures):
-            yield future.result()
-
-
-def _ray(out: Path, configs: list[Config], force: bool, workers: int, address: str | None) -> Iterator[Scenario]:
-    import ray
-
-    with ray_session(workers, address):
-        task = ray.remote(num_cpus=1)(run_seed)
-        pending = [task.remote(out, config, force) for config in configs]
-        while pending:
-            [finished], pending = ray.wait(pending, num_returns=1)
-            yield ray.get(finished)
-
-
-def evaluate(base: Config, seeds: list[int], out: Path, workers: int = 1, executor: str = "local",
-             address: str | None = None, force: bool = False, progress: Progress | None = None,
-             missions: tuple[str, ...] | None = None) -> list[Scenario]:
+def evaluate(base: Config, seeds: list[int], out: Path, executor: Executor = LOCAL, force: bool = False,
+             progress: Progress | None = None, missions: tuple[str, ...] | None = None) -> list[Scenario]:
     """Every seed's scenario under each mission (default the config's), in seed order; `progress` hears (runs
     finished, runs) as they finish."""
+    check_inputs(base)  # every run shares the detector: refused once, before OUT or any run is made
     out = ownership.claim(Path(out), ownership.EVAL, adopt=_older_evaluation)
-    shared = threads_per_worker(base, workers)
+    shared = executor.share_cores(base)
     kinds = missions or (base.mission.kind,)
-    configs = [shared.model_copy(update={"seed": seed, "mission": shared.mission.model_copy(update={"kind": kind})})
-               for seed in seeds for kind in kinds]
+    configs = [shared.override({"seed": seed, "mission": {"kind": kind}}) for seed in seeds for kind in kinds]
     for config in configs:  # refuse before any work, not after hours of it
         claim(run_dir_of(out, config))
         if not force:
             files.check_config(run_dir_of(out, config), config)
-    runs = _ray(out, configs, force, workers, address) if executor == "ray" else _local(out, configs, force, workers)
+    runs = map_tasks(executor, run_seed, [(out, config, force) for config in configs])
     finished: list[Scenario] = []
     if progress:
         progress(0, len(configs))

@@ -2,15 +2,27 @@
 
 Every output goes to a temporary name in the same directory and is renamed into
 place, which is atomic on POSIX file systems: a killed process leaves either the
-old state or the complete new file, plus at most a stray temporary that the
-next write of that file replaces.
+old state or the complete new file, plus at most a stray temporary.
+
+A temporary name is short and of fixed length (`.<hash of the final name>.<host>.<pid>.<n>.partial`,
+about 50 bytes), so it fits wherever the final name fits, and it belongs to one write
+of one process, so two processes (or threads) writing the same file at once never
+rename or delete each other's half-written file. It is hidden and ends in `.partial`,
+so no listing of outputs (`*.png`, a stage's named files) takes it for one. A stray
+left by a process of this machine that has died is removed when its renderloop
+directory is next claimed (`ownership.claim`), or, for a staged directory, when the
+same directory is next written.
 """
 
 from __future__ import annotations
 
+import hashlib
+import itertools
 import json
 import os
+import re
 import shutil
+import socket
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -19,28 +31,67 @@ from typing import Any
 from renderloop.rundir import ownership
 
 TEMP_SUFFIX = ".partial"
+# The machine in each temporary name: a process id says whether its writer still lives only on the machine it ran on.
+_HOST = hashlib.sha1(socket.gethostname().encode("utf-8", "surrogateescape")).hexdigest()[:8]
+_TEMPORARY = re.compile(r"\.([0-9a-f]{16})\.([0-9a-f]{8})\.([0-9]+)\.([0-9a-f]+)" + re.escape(TEMP_SUFFIX))
+_counter = itertools.count()  # next() on it is atomic under the GIL: each thread's temporaries differ too
+# The final path of each temporary this process has made and not yet renamed into place: an error about a temporary
+# (raised inside a write, or caught by the command line) names the file the user asked for instead.
+_finals: dict[Path, Path] = {}
+
+
+def _digest(name: str) -> str:
+    return hashlib.sha1(os.fsencode(name)).hexdigest()[:16]
 
 
 def temporary_path(path: Path) -> Path:
-    return path.with_name(f".{path.name}{TEMP_SUFFIX}")
+    """A new hidden name beside `path` for this one write: no other write, here or in another process, gets it."""
+    path = Path(path)
+    tmp = path.with_name(f".{_digest(path.name)}.{_HOST}.{os.getpid()}.{next(_counter):x}{TEMP_SUFFIX}")
+    _finals[tmp] = path
+    return tmp
 
 
 def final_path(path: Path) -> Path:
-    """The file a temporary name stands for: what an error message should name."""
-    name = path.name
-    if name.startswith(".") and name.endswith(TEMP_SUFFIX):
-        return path.with_name(name[1 : -len(TEMP_SUFFIX)])
+    """The file a temporary name (or a file inside a staged directory) stands for: what an error message should name."""
+    path = Path(path)
+    for prefix in (path, *path.parents):
+        final = _finals.get(prefix)
+        if final is not None:
+            return final / path.relative_to(prefix)
     return path
 
 
-@contextmanager
-def atomic_path(path: Path) -> Iterator[Path]:
-    """Yield a temporary path to write to; rename it onto `path` only if the block succeeds.
+def stray(path: Path) -> bool:
+    """Whether `path` is a temporary that a process of this machine left when it died: nothing will rename it."""
+    match = _TEMPORARY.fullmatch(Path(path).name)
+    if match is None or match[2] != _HOST:
+        return False  # not ours, or another machine's (whose processes cannot be asked from here)
+    pid = int(match[3])
+    if pid == os.getpid():
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except (OSError, OverflowError):  # alive under another user, or not a number a process can have
+        return False
+    return False
 
-    Inside a directory renderloop owns, the file is recorded as ours first (and a file there that is not ours is refused).
-    """
+
+def _naming(error: OSError, tmp: Path, path: Path) -> OSError:
+    """`error` naming `path` where it named the temporary or nothing (a write through a file object from numpy or PIL
+    does not say which file failed)."""
+    named = error.filename
+    if named is None or (isinstance(named, (str, bytes, os.PathLike)) and Path(os.fsdecode(named)) == tmp):
+        return OSError(error.errno, error.strerror, str(path))
+    return error
+
+
+@contextmanager
+def replaced(path: Path) -> Iterator[Path]:
+    """Yield a temporary path to write to; rename it onto `path` only if the block succeeds (nothing is recorded)."""
     path = Path(path)
-    ownership.record(path)
     tmp = temporary_path(path)
     try:
         yield tmp
@@ -49,12 +100,40 @@ def atomic_path(path: Path) -> Iterator[Path]:
         os.replace(tmp, path)
     except OSError as error:
         tmp.unlink(missing_ok=True)
-        if error.filename is None:  # a write through a file object (numpy, PIL) does not say which file failed
-            raise OSError(error.errno, error.strerror, str(path)) from error
+        renamed = _naming(error, tmp, path)
+        if renamed is not error:
+            raise renamed from error
         raise
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+    finally:
+        _finals.pop(tmp, None)  # any error about it names `path` already
+
+
+@contextmanager
+def atomic_path(path: Path) -> Iterator[Path]:
+    """Yield a temporary path to write to; rename it onto `path` only if the block succeeds.
+
+    Inside a directory renderloop owns, the file is recorded as ours first (and a file there that is not ours is refused,
+    as is a path that leads out of that directory through a link).
+    """
+    path = Path(path)
+    ownership.record(path)
+    with replaced(path) as tmp:
+        yield tmp
+
+
+def _clear_stray_stagings(path: Path) -> None:
+    """Remove the staging folders for `path` that writers killed on this machine left beside it."""
+    prefix = f".{_digest(path.name)}."
+    try:
+        entries = [entry for entry in os.scandir(path.parent) if entry.name.startswith(prefix)]
+    except OSError:
+        return
+    for entry in entries:
+        if entry.is_dir(follow_symlinks=False) and stray(Path(entry.path)):
+            shutil.rmtree(entry.path, ignore_errors=True)
 
 
 @contextmanager
@@ -67,14 +146,21 @@ def atomic_directory(path: Path, kind: str) -> Iterator[Path]:
     carries that mark, and only once the new one is complete.
     """
     path = Path(path)
+    if path.is_symlink() and path.is_dir():
+        # the user's link stays and leads to the new directory: the one it leads to is the one replaced
+        path = Path(os.path.realpath(path))
+    _clear_stray_stagings(path)
     staging = temporary_path(path)
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir(parents=True)
+    staging.mkdir(parents=True)  # a fresh name: nothing there to clear first
+    built = staging / path.name
+    _finals[built] = path
     try:
-        yield staging / path.name
-        ownership.replace_directory(staging / path.name, path, kind)
+        yield built
+        ownership.replace_directory(built, path, kind)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+    _finals.pop(staging, None)
+    _finals.pop(built, None)
 
 
 def write_text(path: Path, text: str) -> None:

@@ -5,6 +5,9 @@ is checked against MAX_PIXELS before any pixel is decoded, so a small file that 
 a huge image (a decompression bomb) is refused without the memory it asks for. Only
 PNG and JPEG are identified: every image the project reads is one, and the other
 formats Pillow knows (EPS runs Ghostscript, for one) are attack surface for nothing.
+A reader that knows the type and the channels of its pixels (`read_image_as`) checks
+them too, so a grey image where colour belongs, or a colour one where depth belongs, is
+refused by name instead of reaching a stage in the wrong shape.
 Every way a file can be wrong ends in a one-line UserError naming it.
 """
 
@@ -101,12 +104,17 @@ def read_image(path: Path, mode: str | None = None, formats: Sequence[str] = FOR
     return np.array(open_image(path, mode, formats))
 
 
-def read_image_as(path: Path, dtype: type, formats: Sequence[str] = FORMATS) -> np.ndarray:
-    """The pixels as stored (no mode conversion) in `dtype`; values that do not fit it are an error, not wrapped."""
-    array = read_image(path, formats=formats)
+def read_image_as(path: Path, dtype: type, formats: Sequence[str] = FORMATS, channels: int | None = None) -> np.ndarray:
+    """The pixels as stored (no mode conversion) in `dtype`; values that do not fit it are an error, not wrapped.
+    `channels`: how many the stored pixels must have (1: grey, depth or ids, height x width; 3: RGB)."""
+    image = open_image(path, formats=formats)
+    array = np.array(image)
     target = np.dtype(dtype)
     if target.kind in "ui" and array.size and not np.can_cast(array.dtype, target):
         limits = np.iinfo(target)
         if array.min() < limits.min or array.max() > limits.max:
             raise UserError(f"{_name(path)}: holds {array.dtype.name} values up to {array.max()}, more than {target.name} holds")
+    found = array.shape[2] if array.ndim == 3 else 1  # a palette image has one: its indices
+    if channels is not None and found != channels:
+        raise UserError(f"{_name(path)}: holds {found}-channel {image.mode} pixels, not {channels}-channel")
     return array.astype(target, copy=False)

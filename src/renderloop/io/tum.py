@@ -14,9 +14,12 @@ from scipy.spatial.transform import Rotation
 
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_text
+from renderloop.io.bounded import FINITE, Bound, check_columns, check_increasing
 
 
 FORMAT = ["%.6f"] + ["%.9f"] * 7  # timestamp, then position and quaternion
+COLUMNS = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"]
+UNIT_TOLERANCE = 1e-3  # how far from length 1 a stored quaternion may be (9 decimals are written)
 
 
 def _rows(times: np.ndarray, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
@@ -27,7 +30,7 @@ def _rows(times: np.ndarray, positions: np.ndarray, rotations: np.ndarray) -> np
 def write_tum(path: Path, times: np.ndarray, positions: np.ndarray, rotations: np.ndarray, comment: str) -> None:
     buffer = io.StringIO()
     buffer.write("".join(f"# {line}\n" for line in comment.splitlines()))
-    buffer.write("# timestamp tx ty tz qx qy qz qw\n")
+    buffer.write(f"# {' '.join(COLUMNS)}\n")
     np.savetxt(buffer, _rows(times, positions, rotations), fmt=FORMAT)
     write_text(path, buffer.getvalue())
 
@@ -39,8 +42,9 @@ def as_stored(position: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, n
     return stored[1:4], Rotation.from_quat(stored[4:8]).as_matrix()
 
 
-def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Timestamps (N,), positions (N, 3) and rotation matrices (N, 3, 3)."""
+def read_tum(path: Path, time: Bound = FINITE, position: Bound = FINITE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Timestamps (N,), positions (N, 3) and rotation matrices (N, 3, 3). Timestamps within `time` and not
+    decreasing, positions within `position`, quaternions of unit length: else one line naming the pose."""
     path = Path(path)
     try:
         with warnings.catch_warnings():
@@ -48,13 +52,20 @@ def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             table = np.loadtxt(path, comments="#", ndmin=2)
     except FileNotFoundError:
         raise UserError(f"{path}: no such file") from None
-    except ValueError as exc:
-        raise UserError(f"{path}: not a TUM pose file ({str(exc).splitlines()[0]})") from None
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: not a TUM pose file ({str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__})") from None
     if table.size == 0:
         raise UserError(f"{path}: holds no poses")
-    if table.shape[1] != 8:
-        raise UserError(f"{path}: expected lines of 8 numbers: timestamp tx ty tz qx qy qz qw")
-    bad = np.flatnonzero(~np.all(np.isfinite(table), axis=1) | (np.abs(np.linalg.norm(table[:, 4:8], axis=1) - 1.0) > 1e-3))
+    if table.shape[1] != len(COLUMNS):
+        raise UserError(f"{path}: expected lines of {len(COLUMNS)} numbers: {' '.join(COLUMNS)}")
+
+    def pose(index: int) -> str:
+        return f"pose {index} (t={table[index, 0]})"
+
+    check_columns(str(path), table, COLUMNS, [time, position, position, position] + [FINITE] * 4, pose)
+    check_increasing(str(path), table[:, 0], COLUMNS[0], pose, strictly=False)
+    with np.errstate(over="ignore"):  # a huge component makes the norm inf: not unit length, said below
+        bad = np.flatnonzero(np.abs(np.linalg.norm(table[:, 4:8], axis=1) - 1.0) > UNIT_TOLERANCE)
     if len(bad):
-        raise UserError(f"{path}: pose {bad[0]} (t={table[bad[0], 0]}) has NaN or a quaternion that is not unit length")
+        raise UserError(f"{path}: {pose(int(bad[0]))} has a quaternion that is not unit length")
     return table[:, 0], table[:, 1:4], Rotation.from_quat(table[:, 4:8]).as_matrix()

@@ -29,7 +29,7 @@ Action: a float32 Box of 3 in [-1, 1], scaled linearly to the view:
     azimuth  = π a[0]                                  rad, in [-π, π]
     height   = 0.3 a[1]                                m, in [-0.3, 0.3] (tall canopies: see above)
     distance = 0.55 + 0.2 a[2]                         m, in [0.35, 0.75]
-Values outside [-1, 1] are clipped (and NaN reads as 0).
+Values outside [-1, 1] are clipped (and NaN reads as 0); anything but 3 numbers is a ValueError.
 
 Projection: the action is never refused. A view is reachable when the arm's inverse
 kinematics has a solution, and the path to it is clear: the robot flies from the current
@@ -82,19 +82,21 @@ import tempfile
 import weakref
 from collections import OrderedDict
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import gymnasium
 import numpy as np
 from gymnasium import spaces
+from pydantic import Field
 from scipy.spatial.transform import Rotation
 
 from renderloop.config import Config, load_config
+from renderloop.config.fields import Count, Real, Strict, checked
 from renderloop.counting.online import OnlineCounter
 from renderloop.errors import UserError
 from renderloop.io.tum import as_stored
 from renderloop.loop.sensors import Frame
-from renderloop.loop.simulation import Simulation
+from renderloop.loop.simulation import MAX_HOLD, Simulation
 from renderloop.loop.stage import OnlinePerception
 from renderloop.loop.viewpoints import (
     DISTANCE_RANGE,
@@ -104,6 +106,7 @@ from renderloop.loop.viewpoints import (
 )
 from renderloop.render.executor import FrameWorker
 from renderloop.render.frames import MAX_DEPTH, stored_images
+from renderloop.render.stage import with_backend
 from renderloop.robot.kinematics import (
     dofs_to_camera_pose,
     homogeneous,
@@ -119,6 +122,19 @@ MAX_SETTLE = 1.0  # s it may take after the planned motion ends to come that clo
 SCENES_KEPT = 16  # scene directories kept in the temporary directory (a seed that comes back resets fast)
 SCENE_SEEDS = 2**31  # scene seeds are drawn from [0, SCENE_SEEDS)
 MARGIN = np.float32(0.01)  # on the camera pose's bounds: the room, and unit quaternions, as float32 rounds them
+# The simulation's hover after its plan holds every view's STAY, so the views are as many as MAX_HOLD leaves room for.
+MAX_VIEWS = int((MAX_HOLD - MAX_SETTLE) / STAY) - 1
+
+
+class ScanSettings(Strict):
+    """The environment's arguments beside its config, bounded as the config's fields are (a NaN cost would make
+    every reward NaN; a million views a hover of days sampled into memory)."""
+
+    max_views: Count(1, MAX_VIEWS) = Field(8, description="Views an episode flies (the start view is not one).")
+    time_cost: Real(0.0, 100.0) = Field(0.05, description="Reward lost per second of flight, fruit/s.")
+    max_flight_time: Real(0.0, 86_400.0, low_open=True) | None = Field(
+        None, description="Flight time at which an episode is truncated, s; None: never.")
+    render_mode: Literal["rgb_array"] | None = Field(None, description="What `render()` returns: the last frame's RGB.")
 
 
 def pose_vector(pose: np.ndarray) -> np.ndarray:
@@ -136,16 +152,16 @@ class PepperScanEnv(gymnasium.Env):
                  run_dir: Path | str | None = None) -> None:
         """`config`: the greenhouse, robot, camera, detector and counting (default: the demo preset); `backend`:
         the renderer (None keeps the config's); `run_dir`: where each scene's files go (default a temporary
-        directory that `close()` removes)."""
+        directory that `close()` removes). The other arguments are bounded by `ScanSettings`: one out of its range
+        is a ValueError (UserError) in the CLI's one line, before anything is made."""
+        settings = checked(ScanSettings, "PepperScanEnv", max_views=max_views, time_cost=time_cost,
+                           max_flight_time=max_flight_time, render_mode=render_mode)
         config = config if config is not None else load_config("demo")
-        if backend is not None:
-            config = config.model_copy(update={"renderer": config.renderer.model_copy(update={"backend": backend})})
-        if max_views < 1:
-            raise UserError(f"max_views: {max_views} (at least 1)")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise UserError(f"render_mode {render_mode!r} (choose from: rgb_array)")
-        self.config, self.max_views, self.time_cost = config, max_views, float(time_cost)
-        self.max_flight_time, self.render_mode = max_flight_time, render_mode
+        if not isinstance(config, Config):
+            raise UserError(f"PepperScanEnv: config is a {type(config).__name__}, not a renderloop Config (load_config)")
+        config = with_backend(config, backend, "PepperScanEnv config")  # None keeps the config's
+        self.config, self.max_views, self.time_cost = config, settings.max_views, settings.time_cost
+        self.max_flight_time, self.render_mode = settings.max_flight_time, settings.render_mode
         self._owned = run_dir is None
         self.run_dir = Path(tempfile.mkdtemp(prefix="renderloop-gym-")) if run_dir is None else Path(run_dir)
         # an environment never closed still leaves no temporary directory behind once it is collected (or at exit)
@@ -181,7 +197,7 @@ class PepperScanEnv(gymnasium.Env):
         scene_seed = int(self.np_random.integers(SCENE_SEEDS))
         pick, side = float(self.np_random.random()), int(self.np_random.integers(2))
         scene_seed = int(options.get("scene_seed", scene_seed))
-        config = self.config.model_copy(update={"seed": scene_seed})
+        config = self.config.override({"seed": scene_seed})
         if self.sim is not None:
             self.sim.close()
         self.sim = Simulation(config, self._scene_dir(config), hold=MAX_SETTLE + (self.max_views + 1) * STAY)
@@ -196,7 +212,7 @@ class PepperScanEnv(gymnasium.Env):
         if self._camera_seed != scene_seed:  # a renderer holds one scene: the same scene keeps it
             if self.camera is not None:
                 self.camera.close()
-            self.camera = FrameWorker(config, scene, None, config.renderer.backend)
+            self.camera = FrameWorker(config, scene)
             self._camera_seed = scene_seed
         self.perception.counter = OnlineCounter(scene, config.counting, scene_seed)
         self.perception.frames = []
@@ -216,7 +232,10 @@ class PepperScanEnv(gymnasium.Env):
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         if self.sim is None or self._frame is None:
             raise UserError("PepperScanEnv: call reset() before step()")
-        wanted = action_to_view(action, self.plant)
+        try:
+            wanted = action_to_view(action, self.plant)
+        except (TypeError, ValueError):  # NaN reads as 0, but a wrong shape or a string is no action
+            raise UserError(f"PepperScanEnv.step: action {np.shape(action)} is not 3 numbers (azimuth, height, distance)") from None
         before = self.sim.t
         view, waypoints = self.projector.project(self.view, wanted)
         try:

@@ -20,10 +20,9 @@ import math
 from bisect import bisect_left, insort
 from collections import deque
 from collections.abc import Callable
-from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
-from multiprocessing import get_context
 
 import numpy as np
 from PIL import Image
@@ -31,14 +30,8 @@ from PIL import Image
 from renderloop.config import Config
 from renderloop.errors import UserError
 from renderloop.io.tum import as_stored
-from renderloop.render.executor import (
-    BACKENDS,
-    FrameWorker,
-    blurs_motion,
-    ray_session,
-    spawn_safely,
-    threads_per_worker,
-)
+from renderloop.parallel import Executor, Pending, Workers
+from renderloop.render.executor import FrameWorker, blurs_motion
 from renderloop.render.frames import decode_depth, encode_images, stored_images
 from renderloop.render.motion import FlownStates, exposure_poses, exposure_time, stored
 from renderloop.robot.kinematics import homogeneous
@@ -109,57 +102,25 @@ class Frame:
         return self._stored(names.MASKS)
 
 
-_worker: FrameWorker | None = None
 MAX_ENCODING = 16  # raster frames waiting for their PNGs (3 MB each at 640x480) before the camera waits for the oldest
-
-
-def _start_worker(config: Config, scene: Scene, backend: str) -> None:
-    global _worker
-    _worker = FrameWorker(config, scene, None, backend)
-
-
-def _render_in_worker(index: int, pose: np.ndarray, motion: np.ndarray | None) -> tuple[int, dict[str, bytes], dict[str, float]]:
-    assert _worker is not None
-    return _worker.render_pose(index, pose, motion)
 
 
 class _Renderers:
     """Where frames are rendered: this process (raster), local processes, or Ray actors."""
 
-    def __init__(self, config: Config, scene: Scene, backend: str, workers: int, executor: str, address: str | None,
-                 encode: bool):
-        if backend not in BACKENDS:
-            raise UserError(f"unknown backend {backend!r} (choose from: {', '.join(BACKENDS)})")
-        if executor not in ("local", "ray"):
-            raise UserError(f"unknown executor {executor!r} (choose from: local, ray)")
-        self.pending: dict[int, Future | object] = {}
+    def __init__(self, config: Config, scene: Scene, executor: Executor, encode: bool):
+        self.pending: dict[int, Future | Pending] = {}  # each frame's (index, files or None, timings) to come
         self.images: dict[int, dict[str, np.ndarray]] = {}  # the frames this process rendered, not encoded
         self._close: list[Callable[[], None]] = []
-        if executor == "ray":
-            self._start_ray(config, scene, backend, workers, address)
-        elif backend == "raster" and workers <= 1:
-            self.local = FrameWorker(config, scene, None, backend)
+        if executor.kind == "local" and executor.workers <= 1 and config.renderer.backend == "raster":
+            self.local = FrameWorker(config, scene)
             self._close.append(self.local.close)
             if encode:  # PNG compression, a third of a raster frame's time, on a thread of its own: zlib works without the GIL
                 self.encoder, self.encoding = ThreadPoolExecutor(1), deque()
                 self._close.append(lambda: self.encoder.shutdown(cancel_futures=True))
-        else:
-            config = threads_per_worker(config, workers)
-            pool = ProcessPoolExecutor(max(1, workers), mp_context=get_context("spawn"), initializer=_start_worker,
-                                       initargs=(config, scene, backend))
-            self.pool = pool
-            self._close.append(lambda: pool.shutdown(cancel_futures=True))
-
-    def _start_ray(self, config: Config, scene: Scene, backend: str, workers: int, address: str | None) -> None:
-        import ray
-
-        session = ray_session(workers, address)
-        session.__enter__()
-        self._close.append(lambda: session.__exit__(None, None, None))
-        actor = ray.remote(num_cpus=1)(FrameWorker)
-        config = threads_per_worker(config, workers)
-        self.actors = [actor.remote(config, scene, None, backend) for _ in range(max(1, workers))]
-        self.ray = ray
+        else:  # off this process, even one worker: the physics keeps stepping while frames render
+            self.workers = Workers(executor, FrameWorker, executor.share_cores(config), scene, background=True)
+            self._close.append(self.workers.close)
 
     def submit(self, index: int, pose: np.ndarray, motion: np.ndarray | None = None) -> None:
         if hasattr(self, "local"):
@@ -168,7 +129,7 @@ class _Renderers:
             for image in images.values():  # read by the encoder and the perception thread at once: nobody writes them
                 image.flags.writeable = False
             if not hasattr(self, "encoder"):
-                self.pending[index] = (index, None, frame.timings)  # the frame's files are encoded if they are asked for
+                self.pending[index] = Pending.of((index, None, frame.timings))  # files encoded if they are asked for
                 return
             while len(self.encoding) >= MAX_ENCODING:  # a bounded queue: frames held waiting cost 3 MB each
                 self.encoding.popleft().result()
@@ -176,28 +137,14 @@ class _Renderers:
             self.encoding.append(job)
             while self.encoding and self.encoding[0].done():
                 self.encoding.popleft()
-        elif hasattr(self, "actors"):
-            self.pending[index] = self.actors[index % len(self.actors)].render_pose.remote(index, pose, motion)
         else:
-            with spawn_safely():  # a worker process starts on the first submission
-                self.pending[index] = self.pool.submit(_render_in_worker, index, pose, motion)
+            self.pending[index] = self.workers.submit("render_pose", index, pose, motion)
 
     def ready(self, index: int) -> bool:
-        job = self.pending[index]
-        if isinstance(job, Future):
-            return job.done()
-        if hasattr(self, "actors"):
-            return bool(self.ray.wait([job], timeout=0)[0])
-        return True
+        return self.pending[index].done()
 
     def result(self, index: int) -> dict[str, bytes] | None:
-        job = self.pending[index]
-        if isinstance(job, Future):
-            job = job.result()
-        elif hasattr(self, "actors"):
-            job = self.ray.get(job)
-        self.pending[index] = job
-        return job[1]
+        return self.pending[index].result()[1]
 
     def forget(self, index: int) -> None:
         self.pending.pop(index, None)
@@ -212,14 +159,14 @@ class Camera:
     """The RGB-D camera on the arm's tip: a frame at every instant k / rate_hz of the planned motion, and at any
     instant a mission asks for (`trigger`); a mission can also hold the periodic frames back (`pause`)."""
 
-    def __init__(self, config: Config, scene: Scene, control_rate_hz: float, rate_hz: float, backend: str, workers: int,
-                 executor: str, address: str | None, encode: bool = False) -> None:
+    def __init__(self, config: Config, scene: Scene, control_rate_hz: float, rate_hz: float, executor: Executor,
+                 encode: bool = False) -> None:
         if not 0 < rate_hz <= control_rate_hz:
             raise UserError(f"camera rate {rate_hz} Hz: the control loop at {control_rate_hz} Hz cannot serve it "
                             f"(0 < rate <= {control_rate_hz})")
-        self.config, self.rate_hz, self.backend = config, rate_hz, backend
-        self.blurs = blurs_motion(config, backend)
-        self.renderers = _Renderers(config, scene, backend, workers, executor, address, encode)
+        self.config, self.rate_hz = config, rate_hz
+        self.blurs = blurs_motion(config)
+        self.renderers = _Renderers(config, scene, executor, encode)
         self.restart()
 
     def restart(self) -> None:

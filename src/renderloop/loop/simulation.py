@@ -22,13 +22,17 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from pydantic import Field
 
-from renderloop.config import Config
+from renderloop.config import Config, validate
+from renderloop.config.fields import Real, Strict, checked
 from renderloop.errors import UserError
 from renderloop.loop.reference import ReferencePlan
 from renderloop.loop.sensors import Camera
+from renderloop.parallel import Executor
 from renderloop.planning.check import Clash, check_trajectory
 from renderloop.planning.trajectory import Trajectory
+from renderloop.render.stage import with_backend
 from renderloop.robot.kinematics import homogeneous
 from renderloop.rundir import files, names
 from renderloop.scene.model import Scene
@@ -36,6 +40,17 @@ from renderloop.scene.stage import run_scene
 from renderloop.sim.flight import Flight, FlightLog, FlightRecorder, Reference
 
 HOLD = 1.0  # s the robot hovers at the end of its plan, as `renderloop fly` does
+# The hover is sampled into the plan at the control rate (up to 1 kHz): 1000 s is 1 M samples of q*, q̇*, q̈*, 170 MB.
+MAX_HOLD = 1000.0  # s
+# A new yaw continues the old one modulo 2π (`ReferencePlan._path` unwraps it); within this float64 keeps it to 2e-12 rad.
+MAX_YAW = 1e4  # rad
+DOFS = ("x", "y", "z", "yaw", "q1", "q2", "q3")
+
+
+class SimulationSettings(Strict):
+    """The arguments of `Simulation` beside its config, bounded as the config's fields are."""
+
+    hold: Real(0.0, MAX_HOLD) = Field(HOLD, description="Hover after the planned motion ends, s.")
 
 
 @dataclass(frozen=True)
@@ -52,6 +67,11 @@ class Simulation:
     """One robot in one greenhouse, stepped a control period at a time."""
 
     def __init__(self, config: Config, run_dir: Path | str, hold: float = HOLD) -> None:
+        if not isinstance(config, Config):
+            raise UserError(f"Simulation: config is a {type(config).__name__}, not a renderloop Config (load_config)")
+        # validated again: a Config changed by model_copy(update=...) rather than `override` is not, and would fail stages later
+        config = validate(config.model_dump(mode="json"), "Simulation config")
+        hold = checked(SimulationSettings, "Simulation", hold=hold).hold
         self.config, self.run_dir, self.hold = config, Path(run_dir), hold
         run_scene(self.run_dir, config)  # skipped when the run directory already holds this config's scene
         self.scene: Scene = files.read_scene(self.run_dir)
@@ -89,8 +109,10 @@ class Simulation:
         joined to the current reference without a jump; returns when the new plan passes each waypoint (simulation
         seconds; the last is when it ends). With `check`, the new motion must keep the planner's clearance from the
         greenhouse and stay inside it, or the plan is left as it was and a `Clash` says where it would hit and which
-        waypoint the motion was heading for then."""
+        waypoint the motion was heading for then. Waypoints that are not finite, lie outside the greenhouse room or
+        bend a joint past the arm's limits are refused first, in one line naming the first such waypoint."""
         plan = self._require_plan()
+        waypoints = self.check_waypoints(waypoints)
         trial = copy.deepcopy(plan) if check else plan
         times = trial.replan(self.tick, waypoints, self.config.planner, self.hold)
         if check:
@@ -100,6 +122,34 @@ class Simulation:
                 raise Clash(str(clash), clash.t, int(np.searchsorted(times, clash.t - 1e-9))) from None
             self.plan = trial
         return times
+
+    def check_waypoints(self, waypoints: np.ndarray) -> np.ndarray:
+        """`waypoints` as an (N, 7) float array of q*, or a UserError naming the first that cannot be flown: one not
+        finite, one whose body lies outside the room (as `check_trajectory` bounds it), one whose yaw is beyond
+        ±MAX_YAW, or one with a joint outside `robot.arm.joint_limits` (as inverse kinematics bounds it)."""
+        try:
+            rows = np.array(waypoints, dtype=float)
+        except (TypeError, ValueError):
+            raise UserError(f"waypoints: not an array of numbers ({type(waypoints).__name__})") from None
+        rows = rows[None] if rows.shape == (len(DOFS),) else rows
+        if rows.ndim != 2 or rows.shape[1] != len(DOFS) or len(rows) == 0:
+            raise UserError(f"waypoints: shape {rows.shape} is not rows of q* ({', '.join(DOFS)})")
+        length, width, height = self.scene.room
+        low, high = self.config.robot.arm.joint_limits
+        for index, (x, y, z, yaw, *joints) in enumerate(rows):
+            where = f"waypoints: waypoint {index}"
+            if not np.isfinite(rows[index]).all():
+                raise UserError(f"{where} is not finite ({', '.join(f'{n}={v:g}' for n, v in zip(DOFS, rows[index]))})")
+            if abs(x) > length / 2 or abs(y) > width / 2 or not 0.0 <= z <= height:
+                raise UserError(f"{where} at x, y, z = {x:g}, {y:g}, {z:g} m is outside the greenhouse room "
+                                f"(x within ±{length / 2:g} m, y within ±{width / 2:g} m, z from 0 to {height:g} m)")
+            if abs(yaw) > MAX_YAW:
+                raise UserError(f"{where} has yaw {yaw:g} rad, beyond ±{MAX_YAW:g} rad")
+            for name, angle in zip(DOFS[4:], joints):
+                if not low <= angle <= high:
+                    raise UserError(f"{where} has {name} = {angle:g} rad, outside the arm's joint limits "
+                                    f"[{low:g}, {high:g}] rad (robot.arm.joint_limits)")
+        return rows
 
     def _require_plan(self) -> ReferencePlan:
         if self.plan is None:
@@ -172,8 +222,8 @@ class Simulation:
         the raster camera compresses every frame's PNGs (`frame.files`) on a thread as it renders, for a consumer that
         writes them all; otherwise a raster frame's files are compressed when first asked for (worker processes
         always send them)."""
-        camera = Camera(self.config, self.scene, self.rate_hz, rate_hz or self.config.camera.rate_hz,
-                        backend or self.config.renderer.backend, workers, executor, address, encode)
+        camera = Camera(with_backend(self.config, backend), self.scene, self.rate_hz, rate_hz or self.config.camera.rate_hz,
+                        Executor.of(executor, workers, address), encode)
         self.sensors.append(camera)
         return camera
 

@@ -108,7 +108,9 @@ def _fly_in_loop(run_dir: Path, config: Config, job: Job) -> None:
         sim = stack.enter_context(Simulation(config, run_dir))
         sim.follow(sim.scan_trajectory())
         rate = config.mission.adaptive.first_pass_rate_hz if adaptive else None
-        camera = sim.add_camera(rate_hz=rate, workers=job.workers, executor=job.executor, address=job.address, encode=True)
+        executor = job.executor
+        camera = sim.add_camera(rate_hz=rate, workers=executor.workers, executor=executor.kind, address=executor.address,
+                                encode=True)
         counter = OnlineCounter(sim.scene, config.counting, config.seed)
         perception = stack.enter_context(OnlinePerception(config, counter, thread=True))
         mission = AdaptiveMission(sim, camera, counter, config) if adaptive else None

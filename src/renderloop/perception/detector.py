@@ -78,6 +78,27 @@ def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, 
             for k in keep]
 
 
+def contract_breach(boxes: np.ndarray, scores: np.ndarray) -> str | None:
+    """What is wrong with a network's outputs on a frame, None when they keep the contract: boxes (A, 4) and scores
+    (A, 1 + classes) probabilities, background first, both float32 and finite."""
+    classes = 1 + len(CLASSES)
+    if boxes.dtype != np.float32 or scores.dtype != np.float32:
+        return f"outputs are {boxes.dtype} (boxes) and {scores.dtype} (scores), not float32"
+    if boxes.ndim != 2 or boxes.shape[1] != 4:
+        return f"output boxes has shape {list(boxes.shape)}, not [A, 4]"
+    if scores.ndim != 2:
+        return f"output scores has shape {list(scores.shape)}, not [A, {classes}]"
+    if scores.shape[1] != classes:
+        return f"output scores has {scores.shape[1]} columns, not {classes} (background, {', '.join(CLASSES)})"
+    if len(boxes) != len(scores) or len(boxes) == 0:
+        return f"outputs boxes and scores have {len(boxes)} and {len(scores)} rows, not one per anchor"
+    if not np.isfinite(boxes).all() or not np.isfinite(scores).all():
+        return "outputs hold NaN or infinite values on a grey frame"
+    if scores.min() < 0.0 or scores.max() > 1.0 + 1e-5:
+        return f"output scores range {scores.min():g} to {scores.max():g}, not probabilities in [0, 1]"
+    return None
+
+
 def to_input(rgb: np.ndarray) -> np.ndarray:
     """(H, W, 3) uint8 to the network's (1, 3, 320, 320) float32 in [0, 1]."""
     image = Image.fromarray(rgb)
@@ -87,7 +108,8 @@ def to_input(rgb: np.ndarray) -> np.ndarray:
 
 
 class Detector:
-    """An ONNX pepper detector; a file that is not one is a one-line UserError naming it."""
+    """An ONNX pepper detector; a file that is not one, or whose outputs break the contract on a probe frame, is a
+    one-line UserError naming it. The one loader: every stage and `renderloop run`'s check of its inputs build this."""
 
     def __init__(self, model: Path | None = None, threads: int = 0) -> None:
         import onnxruntime as ort
@@ -106,6 +128,22 @@ class Detector:
         outputs = [o.name for o in self.session.get_outputs()]
         if inputs != [("images", [1, 3, INPUT_SIZE, INPUT_SIZE])] or outputs != ["boxes", "scores"]:
             raise UserError(f"{self.path}: not a renderloop pepper detector (inputs {inputs}, outputs {outputs})")
+        if self.session.get_inputs()[0].type != "tensor(float)":
+            raise UserError(f"{self.path}: not a renderloop pepper detector (input images is "
+                            f"{self.session.get_inputs()[0].type}, not float32)")
+        self._probe()
+
+    def _probe(self) -> None:
+        """One pass on a grey frame, its outputs held to the contract (perception/training/ssd.py): a model that
+        breaks it is refused here, at load, not by an IndexError or a NaN in detections.json hours into a run."""
+        grey = np.full((1, 3, INPUT_SIZE, INPUT_SIZE), 0.5, dtype=np.float32)
+        try:
+            boxes, scores = self.session.run(None, {"images": grey})
+        except Exception as error:  # ORT's own exception types: a graph that cannot run on its declared input
+            raise UserError(f"{self.path}: the model fails on a grey frame ({str(error).splitlines()[0][:120]})") from None
+        wrong = contract_breach(np.asarray(boxes), np.asarray(scores))
+        if wrong:
+            raise UserError(f"{self.path}: not a renderloop pepper detector ({wrong})")
 
     def raw(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         boxes, scores = self.session.run(None, {"images": to_input(rgb)})

@@ -34,13 +34,14 @@ import numpy as np
 from PIL import Image
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveInt, ValidationError
 
+from renderloop.config import DetectorConfig
 from renderloop.errors import UserError, problem
 from renderloop.io.atomic import write_json
 from renderloop.io.images import check_image, read_image
 from renderloop.perception.boxes import box_iou
 from renderloop.perception.detector import CLASSES, PASS_FLOOR, Detection, Detector
 from renderloop.perception.threshold import THRESHOLDS
-from renderloop.perception.tiling import Layout, layout_names
+from renderloop.perception.tiling import layout_names
 from renderloop.rundir import ownership
 
 MATCH_IOU = 0.5
@@ -338,11 +339,12 @@ def class_score(photos: Sequence[Searched], threshold: float, label: str | None 
                       curve=curve)
 
 
-def score(photos: Sequence[Searched], by_class: bool, model: Path, folder: Path, coco: Path, threshold: float,
-          layouts: Sequence[Layout], mirror: bool) -> PhotoScore:
+def score(photos: Sequence[Searched], by_class: bool, model: Path, folder: Path, coco: Path,
+          settings: DetectorConfig) -> PhotoScore:
+    threshold = settings.score_threshold
     return PhotoScore(
-        model=str(model), folder=str(folder), coco=str(coco), threshold=threshold, windows=layout_names(layouts),
-        mirror=mirror, match_iou=MATCH_IOU, search_floor=min(PASS_FLOOR, threshold), images=len(photos),
+        model=str(model), folder=str(folder), coco=str(coco), threshold=threshold, windows=layout_names(settings.layouts),
+        mirror=settings.mirror, match_iou=MATCH_IOU, search_floor=min(PASS_FLOOR, threshold), images=len(photos),
         boxes=sum(len(p.image.boxes) for p in photos), class_agnostic=class_score(photos, threshold),
         by_class={label: class_score(photos, threshold, label) for label in CLASSES} if by_class else None)
 
@@ -370,9 +372,10 @@ def check_out(out: Path, force: bool) -> None:
         raise UserError(f"{_shown(out)}: exists; use --force to replace its score")
 
 
-def search(labels: Labels, detector: Detector, floor: float, layouts: Sequence[Layout], mirror: bool,
-           picks: Sequence[int] = (), progress: Progress | None = None) -> tuple[list[Searched], dict[int, Image.Image]]:
-    """Every photo's detections down to `floor`, and the photos at `picks` (for the sheet)."""
+def search(labels: Labels, detector: Detector, floor: float, settings: DetectorConfig, picks: Sequence[int] = (),
+           progress: Progress | None = None) -> tuple[list[Searched], dict[int, Image.Image]]:
+    """Every photo's detections down to `floor` with the windows and mirror of `settings`, and the photos at `picks`
+    (for the sheet)."""
     photos, kept = [], {}
     for index, image in enumerate(labels.images):
         if progress:
@@ -381,7 +384,7 @@ def search(labels: Labels, detector: Detector, floor: float, layouts: Sequence[L
         if rgb.shape[:2] != (image.height, image.width):  # the header said otherwise: a file that changed since
             raise UserError(f"{_shown(image.path)}: {rgb.shape[1]}x{rgb.shape[0]} pixels, "
                             f"but the labels say {image.width}x{image.height}")
-        photos.append(Searched(image, detector.detect(rgb, floor, layouts, mirror)))
+        photos.append(Searched(image, detector.detect(rgb, floor, settings.layouts, settings.mirror)))
         if index in picks:
             kept[index] = Image.fromarray(rgb)
     if progress:
@@ -389,22 +392,23 @@ def search(labels: Labels, detector: Detector, floor: float, layouts: Sequence[L
     return photos, kept
 
 
-def score_photos(folder: Path, coco: Path, out: Path, model: Path | None, threshold: float, layouts: Sequence[Layout],
-                 mirror: bool, force: bool = False, progress: Progress | None = None) -> PhotoScore:
-    """Search, score and write score.json, pr_curve.png and sheet.png into `out`; the record written."""
+def score_photos(folder: Path, coco: Path, out: Path, settings: DetectorConfig, force: bool = False,
+                 progress: Progress | None = None) -> PhotoScore:
+    """Search with the model, windows and mirror of `settings`, score at its threshold (and the curve around it), and
+    write score.json, pr_curve.png and sheet.png into `out`; the record written."""
     from renderloop.perception.photo_plots import draw_photo_sheet, draw_pr_curve
 
     out = Path(out)
     check_out(out, force)
     labels = read_labels(coco, folder)
-    detector = Detector(model)
+    detector = Detector(settings.model)
     picks = sheet_picks(len(labels.images))
-    photos, shown = search(labels, detector, min(PASS_FLOOR, threshold), layouts, mirror, picks, progress)
-    record = score(photos, labels.by_class, detector.path, Path(folder), Path(coco), threshold, layouts, mirror)
+    photos, shown = search(labels, detector, min(PASS_FLOOR, settings.score_threshold), settings, picks, progress)
+    record = score(photos, labels.by_class, detector.path, Path(folder), Path(coco), settings)
     ownership.claim(out, ownership.PHOTO_SCORE)
     ownership.remove_recorded(out, OUTPUTS)  # the old score goes whole: never half of it beside the new one
     draw_pr_curve(record, out / PR_CURVE)
-    draw_photo_sheet([(photos[i], shown[i]) for i in picks], threshold, labels.by_class, out / SHEET)
+    draw_photo_sheet([(photos[i], shown[i]) for i in picks], settings.score_threshold, labels.by_class, out / SHEET)
     write_json(out / SCORE, record.model_dump(mode="json"))
     return record
 

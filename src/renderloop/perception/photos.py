@@ -8,16 +8,17 @@ A photo that cannot be read stops the run: the photos before it are written
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
+from renderloop.config import DetectorConfig
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_json
 from renderloop.io.images import read_image
 from renderloop.perception.detector import Detector
-from renderloop.perception.tiling import Layout, layout_names
+from renderloop.perception.tiling import layout_names
 
 SUFFIXES = {".png", ".jpg", ".jpeg"}
 
@@ -38,24 +39,24 @@ def _read_rgb(path: Path) -> np.ndarray:
     return read_image(path, "RGB")
 
 
-def detect_photos(folder: Path, out: Path, model: Path | None, threshold: float, layouts: Sequence[Layout], mirror: bool,
-                  force: bool = False, progress: Progress | None = None) -> int:
-    """Detect on every photo of `folder` into `out`; an existing `out` is replaced only with `force`."""
+def detect_photos(folder: Path, out: Path, settings: DetectorConfig, force: bool = False, progress: Progress | None = None) -> int:
+    """Detect on every photo of `folder` into `out` with the model, threshold, windows and mirror of `settings`; an
+    existing `out` is replaced only with `force`."""
     photos = list_photos(folder)
     if Path(out).is_dir():
         raise UserError(f"--out {out}: is a folder; give a .json file name")
     if Path(out).exists() and not force:
         raise UserError(f"{out}: exists; use --force to replace it")
-    detector = Detector(model)
+    detector = Detector(settings.model)
     results: dict[str, dict] = {}
-    record = {"model": str(detector.path), "score_threshold": threshold, "windows": layout_names(layouts),
-              "mirror": mirror, "complete": False, "error": None, "images": results}
+    record = {"model": str(detector.path), "score_threshold": settings.score_threshold, "windows": layout_names(settings.layouts),
+              "mirror": settings.mirror, "complete": False, "error": None, "images": results}
     try:
         for done, path in enumerate(photos):
             if progress:
                 progress(done, len(photos))
             rgb = _read_rgb(path)
-            found = detector.detect(rgb, threshold, layouts, mirror)
+            found = detector.detect(rgb, settings.score_threshold, settings.layouts, settings.mirror)
             results[path.name] = {"width": rgb.shape[1], "height": rgb.shape[0], "detections": [d.to_json() for d in found]}
     except UserError as error:
         record["error"] = str(error)

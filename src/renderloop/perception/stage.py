@@ -140,4 +140,4 @@ def score_run(run_dir: Path, frames: list[DetectionFrame]) -> DetectionScores:
 def with_detector(config: Config, **overrides: object) -> Config:
     """The config with detector settings of the command line (`--model`, `--threshold`, ...); None keeps the config's."""
     chosen = {key: value for key, value in overrides.items() if value is not None}
-    return config.model_copy(update={"detector": config.detector.model_copy(update=chosen)})
+    return config.override({"detector": chosen})

@@ -19,11 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from renderloop.config import DetectorConfig
 from renderloop.perception.detector import PASS_FLOOR, Detector
 from renderloop.perception.scoring import FrameTruth, RunScore
 from renderloop.perception.stage import NEEDS as DETECT_NEEDS
 from renderloop.perception.stage import read_rgb_frame
-from renderloop.perception.tiling import Layout
 from renderloop.render.frames import read_png
 from renderloop.rundir import files, names
 from renderloop.scene.model import Scene
@@ -57,8 +57,9 @@ class SearchedRun:
     frames: list[tuple[list[dict], FrameTruth]]
 
 
-def search_run(run_dir: Path, detector: Detector, layouts: Sequence[Layout], mirror: bool,
-               progress: Progress | None = None) -> SearchedRun:
+def search_run(run_dir: Path, detector: Detector, settings: DetectorConfig, progress: Progress | None = None) -> SearchedRun:
+    """Every frame's detections down to PASS_FLOOR, with the windows and mirror of `settings` (its threshold is what
+    the search chooses), and the frame's truth."""
     run_dir = Path(run_dir)
     files.require(run_dir, DETECT_NEEDS)
     scene = files.read_scene(run_dir)
@@ -67,7 +68,7 @@ def search_run(run_dir: Path, detector: Detector, layouts: Sequence[Layout], mir
     for index in range(count):
         if progress:
             progress(index, count)
-        found = [d.to_json() for d in detector.detect(read_rgb_frame(run_dir, index), PASS_FLOOR, layouts, mirror)]
+        found = [d.to_json() for d in detector.detect(read_rgb_frame(run_dir, index), PASS_FLOOR, settings.layouts, settings.mirror)]
         frames.append((found, FrameTruth.of_mask(read_png(run_dir / names.frame_file(names.MASKS, index), np.uint16))))
     return SearchedRun(scene, frames)
 

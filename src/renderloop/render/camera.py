@@ -9,15 +9,28 @@ Depth is planar, along the optical z axis (REP-118).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import yaml
 
 from renderloop.config import CameraConfig
+from renderloop.config.fields import MAX_PIXELS
+from renderloop.errors import UserError
+from renderloop.io.bounded import field_bounds, load_yaml, number_text
 
 OPTICAL_TO_GL = np.diag([1.0, -1.0, -1.0])
 CAMERA_NAME = "renderloop_rgbd"
+# camera_info.yaml's image is a camera the config allows: its width and height within camera.width's and
+# camera.height's ranges, and at most MAX_PIXELS in all.
+IMAGE_SIDES = {"image_width": field_bounds(CameraConfig, "width"), "image_height": field_bounds(CameraConfig, "height")}
+# A focal length of 100 image widths is a 0.6° field of view, narrower than camera.hfov_deg allows (1°).
+MAX_FOCAL_WIDTHS = 100
+# The matrices of a ROS camera_info and their shape (rows, cols); None: as many as the file says (distortion).
+MATRICES: dict[str, tuple[int, int | None]] = {
+    "camera_matrix": (3, 3), "distortion_coefficients": (1, None), "rectification_matrix": (3, 3), "projection_matrix": (3, 4)}
 
 
 @dataclass(frozen=True)
@@ -83,16 +96,57 @@ def camera_info_yaml(intrinsics: Intrinsics) -> str:
     return yaml.safe_dump(data, sort_keys=False)
 
 
-def parse_camera_info(text: str) -> Intrinsics:
-    """The intrinsics of a ROS camera_info YAML; ValueError says what is wrong with it."""
-    try:
-        data = yaml.safe_load(text)
-        k = np.array(data["camera_matrix"]["data"], dtype=float).reshape(3, 3)
-        intrinsics = Intrinsics(int(data["image_width"]), int(data["image_height"]), k[0, 0], k[1, 1], k[0, 2], k[1, 2])
-    except (yaml.YAMLError, KeyError, TypeError, ValueError):
-        raise ValueError("not a ROS camera_info YAML") from None
-    if not (0 < intrinsics.width <= 65535 and 0 < intrinsics.height <= 65535):
-        raise ValueError(f"image size {intrinsics.width}x{intrinsics.height} is not a camera's")
-    if not (np.isfinite([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy]).all() and intrinsics.fx > 0 and intrinsics.fy > 0):
-        raise ValueError("camera_matrix: focal lengths must be positive and finite")
+def _shown(value: Any) -> str:
+    """A value of the file as a message shows it: a number's digits, else its type (a string may be any length)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return number_text(float(value)) if isinstance(value, float) or abs(value) < 10**15 else "a huge integer"
+    return "nothing" if value is None else f"a {type(value).__name__}"
+
+
+def _matrix(data: dict[str, Any], name: str, source: str) -> np.ndarray | None:
+    """One of MATRICES, its entries finite and as many as its rows x cols; None when the file leaves it out."""
+    if name not in data:
+        return None
+    rows, cols = MATRICES[name]
+    entry = data[name]
+    values = entry.get("data") if isinstance(entry, dict) else None
+    if not isinstance(values, list):
+        raise UserError(f"{source}: {name}: not a ROS camera_info matrix (rows, cols, data)")
+    for index, value in enumerate(values):
+        if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+            raise UserError(f"{source}: {name}.data.{index}: {_shown(value)} is not a finite number")
+    expected = rows * (cols if cols is not None else len(values))
+    if len(values) != expected or (cols is None and not values):
+        raise UserError(f"{source}: {name}: {len(values)} numbers, not {rows} x {cols or 'n'}")
+    return np.array(values, dtype=float).reshape(rows, -1)
+
+
+def parse_camera_info(text: str, source: str = "camera_info.yaml") -> Intrinsics:
+    """The intrinsics of a ROS camera_info YAML (`source` names it in messages): its image size one the camera
+    config allows, every matrix entry finite, focal lengths positive and the principal point in the image.
+    Anything else is one UserError line."""
+    data = load_yaml(text, source)
+    if not isinstance(data, dict) or "camera_matrix" not in data:
+        raise UserError(f"{source}: not a ROS camera_info YAML (no camera_matrix)")
+    size = []
+    for key, (low, high) in IMAGE_SIDES.items():
+        value = data.get(key)
+        if not isinstance(value, int) or isinstance(value, bool):
+            raise UserError(f"{source}: {key}: {_shown(value)} is not a whole number of pixels")
+        if not low <= value <= high:
+            raise UserError(f"{source}: {key}: {value} is out of range [{low}, {high}] px")
+        size.append(value)
+    width, height = size
+    if width * height > MAX_PIXELS:
+        raise UserError(f"{source}: image_width: a {width} x {height} px image is more than {MAX_PIXELS} px")
+    matrices = {name: _matrix(data, name, source) for name in MATRICES}
+    k = matrices["camera_matrix"]
+    intrinsics = Intrinsics(width, height, float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2]))
+    for name, value, high in (("fx", intrinsics.fx, MAX_FOCAL_WIDTHS * width), ("fy", intrinsics.fy, MAX_FOCAL_WIDTHS * width)):
+        if not 0 < value <= high:
+            raise UserError(f"{source}: camera_matrix: {name} {number_text(value)} is out of range (0, {high}] px")
+    for name, value, high in (("cx", intrinsics.cx, width), ("cy", intrinsics.cy, height)):
+        if not 0 <= value <= high:
+            raise UserError(f"{source}: camera_matrix: {name} {number_text(value)} is out of range [0, {high}] px, "
+                            "outside the image")
     return intrinsics

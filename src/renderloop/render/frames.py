@@ -97,8 +97,8 @@ def write_frame(run_dir: Path, index: int, files: dict[str, bytes]) -> None:
 
 def read_png(path: Path, dtype: type) -> np.ndarray:
     """A frame file as stored, size-checked before decoding: anything but a readable PNG whose values fit `dtype`
-    is a UserError."""
-    return read_image_as(path, dtype, formats=("PNG",))
+    is a UserError. A run's 8-bit frames are RGB (rgb/, rgb_sensor/), its 16-bit ones one channel (depth, ids)."""
+    return read_image_as(path, dtype, formats=("PNG",), channels=3 if np.dtype(dtype) == np.uint8 else 1)
 
 
 def read_frame(run_dir: Path, index: int) -> RenderedFrame:

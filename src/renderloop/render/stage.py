@@ -19,7 +19,7 @@ from renderloop.config import BouncesConfig, Config, RasterConfig, SensorConfig
 from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
 from renderloop.render.contact_sheet import draw_contact_sheet
-from renderloop.render.executor import BACKENDS, blurs_motion, render_local, render_ray
+from renderloop.render.executor import blurs_motion, render_frames
 from renderloop.render.frames import frame_done, streams_of, write_frame
 from renderloop.render.motion import FlownStates, frames_motion
 from renderloop.rundir import files, names, ownership
@@ -84,9 +84,6 @@ def check_disk(run_dir: Path, config: Config, frames: int) -> None:
 
 
 def _render(run_dir: Path, config: Config, job: Job) -> None:
-    backend = config.renderer.backend
-    if job.executor not in ("local", "ray"):
-        raise UserError(f"unknown executor {job.executor!r} (choose from: local, ray)")
     times, poses = files.read_poses(run_dir)
     record = render_record(run_dir, config, poses)
     if job.force or _recorded(run_dir) != record:
@@ -102,14 +99,10 @@ def _render(run_dir: Path, config: Config, job: Job) -> None:
         check_disk(run_dir, config, len(todo))
         scene = files.read_scene(run_dir)
         motion = None
-        if blurs_motion(config, backend):  # the camera's motion while each frame's shutter is open, as it was flown
+        if blurs_motion(config):  # the camera's motion while each frame's shutter is open, as it was flown
             states = FlownStates.of_flight(files.read_flight(run_dir))
             motion = frames_motion(states, config.robot.arm, times, poses, config.camera.sensor, config.seed)
-        if job.executor == "ray":
-            batches = render_ray(config, scene, poses, backend, todo, job.workers, job.address, motion)
-        else:
-            batches = render_local(config, scene, poses, backend, todo, job.workers, motion)
-        for batch in batches:
+        for batch in render_frames(config, scene, poses, todo, job.executor, motion):
             for index, frame_files, _ in batch:
                 write_frame(run_dir, index, frame_files)
             done += len(batch)
@@ -137,10 +130,10 @@ STAGE = Stage("render", needs=NEEDS, work=_render, current=_same_record)
 run_render = STAGE.run
 
 
-def with_backend(config: Config, backend: str | None) -> Config:
-    """The config with another renderer backend (`renderloop render --backend`): the record says which made the frames."""
+def with_backend(config: Config, backend: str | None, source: str | None = None) -> Config:
+    """The config with another renderer backend (`renderloop render --backend`, `Simulation.add_camera`, the gym
+    environment; the render record says which made the frames), validated as a config file is: the config model holds
+    the backends there are, and an unknown one is its one line, after `source` (default: `unknown backend '...'`)."""
     if backend is None:
         return config
-    if backend not in BACKENDS:
-        raise UserError(f"unknown backend {backend!r} (choose from: {', '.join(BACKENDS)})")
-    return config.model_copy(update={"renderer": config.renderer.model_copy(update={"backend": backend})})
+    return config.override({"renderer": {"backend": backend}}, source or f"unknown backend {backend!r}")

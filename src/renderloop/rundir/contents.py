@@ -3,7 +3,9 @@
 An export takes what exists and names what is missing: a run flown but not rendered
 still makes a bag of its flight, so `missing` lists the absent pieces (the CLI says
 them in one line) instead of refusing. What exists but is malformed is still a
-UserError from the readers the stages use.
+UserError from the readers the stages use, and every frame's images are checked from
+their headers to be of the camera's size (`camera_info.yaml`) before an exporter decodes
+one.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from renderloop.config import Config
+from renderloop.errors import UserError
+from renderloop.io.images import check_image
 from renderloop.planning.waypoints import Waypoint
 from renderloop.render.camera import Intrinsics
 from renderloop.render.frames import sensor_depth_dir, sensor_rgb_dir
@@ -71,6 +75,17 @@ def _frames(run_dir: Path, missing: list[str]) -> list[Frame]:
     return frames
 
 
+def _check_sizes(run_dir: Path, frames: list[Frame], intrinsics: Intrinsics) -> None:
+    """Every image of every frame the camera's size, from its header alone (nothing is decoded): an exporter
+    decodes them one by one later, and one of another size would fail deep inside it."""
+    for frame in frames:
+        for path in (frame.rgb, frame.depth, frame.mask):
+            width, height = check_image(path, formats=("PNG",))
+            if (width, height) != (intrinsics.width, intrinsics.height):
+                raise UserError(f"{path}: {width}x{height} px, but {run_dir / names.CAMERA_INFO} says "
+                                f"{intrinsics.width}x{intrinsics.height}")
+
+
 def read_run(run_dir: Path) -> RunContents:
     run_dir = Path(run_dir)
     contents = RunContents(run_dir, files.read_config(run_dir))
@@ -86,6 +101,7 @@ def read_run(run_dir: Path) -> RunContents:
     contents.frames = _frames(run_dir, missing)
     if contents.frames or (run_dir / names.CAMERA_INFO).is_file():
         contents.intrinsics = files.read_camera_info(run_dir)
+        _check_sizes(run_dir, contents.frames, contents.intrinsics)
     if _present(run_dir, names.DETECTIONS, missing):
         parsed = files.read_detections(run_dir, len(files.read_poses(run_dir)[0]))
         contents.detections = {frame.index: frame.detections for frame in parsed.frames}

@@ -2,32 +2,48 @@
 
 Stages, the report, the evaluation and the exporters read each other's files only
 through here, so a format lives in one place. Every reader turns a missing, damaged
-or hand-edited file into one UserError line naming the file (and the field, for JSON);
-every writer writes atomically (`renderloop.io.atomic`) into a directory renderloop
-owns (`renderloop.rundir.ownership`).
+or hand-edited file into one UserError line naming the file (and the field, for JSON;
+the row and column, for tables); every number is checked finite and within its bound
+(the tables' below, the JSON files' in `renderloop.rundir.models` and
+`renderloop.scene.model`), and no document is parsed that nests deeper than
+`renderloop.io.bounded.MAX_DEPTH`. Every writer writes atomically
+(`renderloop.io.atomic`) into a directory renderloop owns (`renderloop.rundir.ownership`).
 """
 
 from __future__ import annotations
 
-import json
+import math
 from pathlib import Path, PurePosixPath
 from typing import TypeVar
 
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
-from renderloop.config import Config, load_resolved
+from renderloop.config import Config, PlannerConfig, RotorConfig, load_resolved
+from renderloop.config.fields import MAX_PLANTS
 from renderloop.errors import UserError, problem
 from renderloop.io.atomic import dumps_json, write_text
-from renderloop.io.csvtable import read_csv, write_csv
+from renderloop.io.bounded import Bound, check_columns, check_increasing, check_json_depth, field_bounds, load_json, number_text
+from renderloop.io.csvtable import read_csv, row_name, write_csv
 from renderloop.io.tum import read_tum, write_tum
 from renderloop.planning.trajectory import HEADER as TRAJECTORY_HEADER
 from renderloop.planning.waypoints import Waypoint
 from renderloop.render.camera import Intrinsics, camera_info_yaml, parse_camera_info
 from renderloop.robot.kinematics import homogeneous
 from renderloop.rundir import names
-from renderloop.rundir.models import Counts, Detections, DetectionScores, Harvest, Mission, RenderRecord, Timings
-from renderloop.scene.model import Scene, load_scene
+from renderloop.rundir.models import (
+    MAX_COUNT,
+    MAX_DISTANCE,
+    MAX_TIME,
+    Counts,
+    Detections,
+    DetectionScores,
+    Harvest,
+    Mission,
+    RenderRecord,
+    Timings,
+)
+from renderloop.scene.model import WORLD_BOUND, Scene, load_scene
 
 Model = TypeVar("Model", bound=BaseModel)
 
@@ -43,6 +59,52 @@ POSES_COMMENT = (
     "renderloop ground truth: pose of the camera optical frame (x right, y down, z forward)\n"
     "in the world frame (ENU, z up), from the simulated arm; time in simulation seconds"
 )
+
+# The bounds of the tables' numbers: physical limits wide enough for every run the config allows, so that only a
+# damaged or hand-edited file is refused. Positions share scene.json's WORLD_BOUND, times and distances the JSON
+# files' (renderloop.rundir.models).
+TIME = Bound(0.0, MAX_TIME, "s")
+POSITION = Bound(-WORLD_BOUND, WORLD_BOUND, "m")
+OFFSET = Bound(-2 * WORLD_BOUND, 2 * WORLD_BOUND, "m")  # one position less another
+DISTANCE = Bound(0.0, MAX_DISTANCE, "m")
+# Yaw is unwrapped along a trajectory, so turns add up: a million radians is more than any scan turns (at most
+# half a turn from one waypoint to the next), and a float64 still holds such an angle to 1e-10 rad.
+HEADING = Bound(-1e6, 1e6, "rad")
+# A turn either way: every joint limit lies within [-π, π] (robot.arm.joint_limits), MuJoCo's soft limits let a
+# flown joint overshoot a little, and a wrapped angle written to 6 decimals may pass π by rounding.
+TURN = Bound(-2 * math.pi, 2 * math.pi, "rad")
+QUATERNION = Bound(-1.0, 1.0)
+# Five times the planner's largest limits: TOPP-RA keeps a trajectory within planner.velocity_limits and
+# planner.acceleration_limits, whose ceilings these follow.
+_FASTEST, _HARDEST = (5 * field_bounds(PlannerConfig, name)[1] for name in ("velocity_limits", "acceleration_limits"))
+RATE = Bound(-_FASTEST, _FASTEST, "m/s or rad/s")
+ACCELERATION = Bound(-_HARDEST, _HARDEST, "m/s² or rad/s²")
+# No rotor spins faster than the largest robot.rotor.max_speed the config allows.
+ROTOR_SPEED = Bound(0.0, field_bounds(RotorConfig, "max_speed")[1], "rad/s")
+COUNT = Bound(0, MAX_COUNT, integer=True)
+FLAG = Bound(0, 1, integer=True)
+
+_DOF = {"x": POSITION, "y": POSITION, "z": POSITION, "yaw": HEADING, "q1": TURN, "q2": TURN, "q3": TURN}  # q*
+
+
+def _bounds(header: list[str], bound_of: dict[str, Bound]) -> list[Bound]:
+    """One bound per column of `header`, from the column's name."""
+    assert set(bound_of) == set(header), set(bound_of) ^ set(header)
+    return [bound_of[name] for name in header]
+
+
+WAYPOINT_BOUNDS = _bounds(WAYPOINT_HEADER[4:], {"t": TIME, **_DOF})  # the numeric columns, from t on
+TRAJECTORY_BOUNDS = _bounds(TRAJECTORY_HEADER, {
+    "t": TIME, **_DOF, **{f"d{name}": RATE for name in _DOF}, **{f"dd{name}": ACCELERATION for name in _DOF}})
+FLIGHT_BOUNDS = _bounds(FLIGHT_HEADER, {
+    "t": TIME, "x": POSITION, "y": POSITION, "z": POSITION, **dict.fromkeys(("qx", "qy", "qz", "qw"), QUATERNION),
+    "q1": TURN, "q2": TURN, "q3": TURN, **dict.fromkeys(("w1", "w2", "w3", "w4"), ROTOR_SPEED),
+    **{f"ref_{name}": bound for name, bound in _DOF.items()},
+    "err_x": OFFSET, "err_y": OFFSET, "err_z": OFFSET, "err_yaw": TURN,
+    "cam_x": POSITION, "cam_y": POSITION, "cam_z": POSITION, "cam_err": DISTANCE, "contacts": COUNT, "saturated": FLAG})
+# The planner samples at planner.sample_rate_hz: rows this far off their one step apart are not its (6 decimals
+# are written, so two roundings at most).
+SAMPLE_TOLERANCE = 2.5e-6  # s
 
 
 def _missing(run_dir: Path, name: str) -> UserError:
@@ -67,6 +129,9 @@ def read_model(path: Path, model: type[Model]) -> Model:
         data = path.read_bytes()
     except FileNotFoundError:
         raise UserError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise UserError(f"{path}: a folder, not a JSON file") from None
+    check_json_depth(data, str(path))
     try:
         return model.model_validate_json(data)
     except ValidationError as exc:
@@ -168,8 +233,7 @@ def write_config(run_dir: Path, config: Config) -> None:
 def _what_it_computes(config: Config) -> Config:
     """The config less what decides how fast files come, not what they hold: the renderer's thread count and device,
     and whether the scan is flown online (the online loop writes the batch stages' files)."""
-    return config.model_copy(update={"renderer": config.renderer.model_copy(update={"threads": 0, "device": "cpu"}),
-                                     "mission": config.mission.model_copy(update={"online": False})})
+    return config.override({"renderer": {"threads": 0, "device": "cpu"}, "mission": {"online": False}})
 
 
 def check_config(run_dir: Path, config: Config) -> None:
@@ -215,19 +279,33 @@ def read_waypoints(run_dir: Path) -> list[Waypoint]:
         raise UserError(f"{path}: not a readable text file") from None
     if not rows or rows[0] != ",".join(WAYPOINT_HEADER):
         raise UserError(f"{path}: header is not {','.join(WAYPOINT_HEADER)}")
-    waypoints = []
-    for number, row in enumerate(rows[1:], start=2):
+    if len(rows) < 2:
+        raise UserError(f"{path}: holds no waypoints")
+    parsed: list[tuple[str, int, str]] = []
+    numbers = []
+    for index, row in enumerate(rows[1:]):
         fields = row.split(",")
+        where = f"{path}: {row_name(index)}"
+        if len(fields) != len(WAYPOINT_HEADER):
+            raise UserError(f"{where} has {len(fields)} fields, not {len(WAYPOINT_HEADER)}")
+        if fields[0] != str(index):
+            raise UserError(f"{where} has {fields[0]!r} in column index, not {index}")
+        if fields[1] not in WAYPOINT_KINDS:
+            raise UserError(f"{where} has {fields[1]!r} in column kind, not one of {', '.join(WAYPOINT_KINDS)}")
+        if fields[3] not in ("", "left", "right"):
+            raise UserError(f"{where} has {fields[3]!r} in column side, not left, right or nothing")
         try:
-            if len(fields) != len(WAYPOINT_HEADER) or fields[1] not in WAYPOINT_KINDS:
-                raise ValueError
-            values = np.array([float(v) for v in fields[4:]])
-            if not np.all(np.isfinite(values)):
-                raise ValueError
-            waypoints.append(Waypoint(fields[1], values[1:], int(fields[2]), fields[3], float(values[0])))
+            plant = int(fields[2])
+            numbers.append([float(v) for v in fields[4:]])
         except ValueError:
-            raise UserError(f"{path}: line {number} is not a waypoint row") from None
-    return waypoints
+            raise UserError(f"{where} is not a waypoint row (a number that is not one)") from None
+        if not -1 <= plant < MAX_PLANTS:
+            raise UserError(f"{where} has {plant} in column plant, out of range [-1, {MAX_PLANTS - 1}]")
+        parsed.append((fields[1], plant, fields[3]))
+    table = np.array(numbers)
+    check_columns(str(path), table, WAYPOINT_HEADER[4:], WAYPOINT_BOUNDS, row_name)
+    check_increasing(str(path), table[:, 0], "t", row_name, strictly=False)
+    return [Waypoint(kind, values[1:], plant, side, float(values[0])) for (kind, plant, side), values in zip(parsed, table)]
 
 
 def write_trajectory(run_dir: Path, table: np.ndarray) -> None:
@@ -235,9 +313,18 @@ def write_trajectory(run_dir: Path, table: np.ndarray) -> None:
 
 
 def read_trajectory(run_dir: Path) -> np.ndarray:
-    """Rows of t, q*, q̇*, q̈* (7 DoF each) at the planner's sample rate."""
+    """Rows of t, q*, q̇*, q̈* (7 DoF each) at the planner's sample rate: t increasing in equal steps."""
     require(run_dir, (names.TRAJECTORY,))
-    return read_csv(Path(run_dir) / names.TRAJECTORY, TRAJECTORY_HEADER)
+    path = Path(run_dir) / names.TRAJECTORY
+    table = read_csv(path, TRAJECTORY_HEADER, TRAJECTORY_BOUNDS)
+    check_increasing(str(path), table[:, 0], "t", row_name, strictly=True)
+    steps = np.diff(table[:, 0])
+    uneven = np.flatnonzero(np.abs(steps - steps[0]) > SAMPLE_TOLERANCE) if len(steps) else []
+    if len(uneven):
+        index = int(uneven[0]) + 1  # the row after the uneven step
+        raise UserError(f"{path}: {row_name(index)} has {number_text(table[index, 0])} in column t, not one "
+                        f"sample step ({number_text(steps[0])} s) after {row_name(index - 1)}")
+    return table
 
 
 def write_flight(run_dir: Path, table: np.ndarray) -> None:
@@ -247,7 +334,9 @@ def write_flight(run_dir: Path, table: np.ndarray) -> None:
 def read_flight(run_dir: Path) -> dict[str, np.ndarray]:
     """flight.csv's columns by name."""
     require(run_dir, (names.FLIGHT,))
-    table = read_csv(Path(run_dir) / names.FLIGHT, FLIGHT_HEADER)
+    path = Path(run_dir) / names.FLIGHT
+    table = read_csv(path, FLIGHT_HEADER, FLIGHT_BOUNDS)
+    check_increasing(str(path), table[:, 0], "t", row_name, strictly=True)  # one row per control tick
     return {name: table[:, column] for column, name in enumerate(FLIGHT_HEADER)}
 
 
@@ -258,7 +347,7 @@ def write_poses(run_dir: Path, times: np.ndarray, positions: np.ndarray, rotatio
 def read_poses(run_dir: Path) -> tuple[np.ndarray, np.ndarray]:
     """The camera's timestamps (N,) and optical-frame poses in the world, T_world_optical (N, 4, 4)."""
     require(run_dir, (names.POSES,))
-    times, positions, rotations = read_tum(Path(run_dir) / names.POSES)
+    times, positions, rotations = read_tum(Path(run_dir) / names.POSES, TIME, POSITION)
     return times, np.array([homogeneous(r, p) for r, p in zip(rotations, positions)])
 
 
@@ -273,8 +362,12 @@ def read_frames_index(run_dir: Path, stream: str) -> list[tuple[float, str]]:
     path = Path(run_dir) / names.frames_index(stream)
     if not path.is_file():
         raise _missing(run_dir, names.frames_index(stream)) if stream != names.DEPTH_SENSOR else UserError(f"{path}: no such file")
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError:
+        raise UserError(f"{path}: not a readable text file") from None
     entries = []
-    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+    for number, line in enumerate(lines, start=1):
         if line.startswith("#") or not line.strip():
             continue
         parts = line.split()
@@ -284,6 +377,14 @@ def read_frames_index(run_dir: Path, stream: str) -> list[tuple[float, str]]:
             entries.append((float(parts[0]), parts[1]))
         except ValueError:
             raise UserError(f"{path}: line {number} is not `timestamp filename`") from None
+        time, image = entries[-1]
+        if (problem := TIME.problem(time)) is not None:
+            raise UserError(f"{path}: line {number} has {number_text(time)} as its timestamp, {problem}")
+        if len(entries) > 1 and time < entries[-2][0]:
+            raise UserError(f"{path}: line {number} has {number_text(time)} as its timestamp, earlier than the line before")
+        relative = PurePosixPath(image)
+        if relative.is_absolute() or ".." in relative.parts or "\\" in image:
+            raise UserError(f"{path}: line {number} names {image!r}, not a file inside the run directory")
     return entries
 
 
@@ -298,18 +399,18 @@ def read_camera_info(run_dir: Path) -> Intrinsics:
     if not path.is_file():
         raise _missing(run_dir, names.CAMERA_INFO)
     try:
-        return parse_camera_info(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
         raise UserError(f"{path}: not a ROS camera_info YAML") from None
-    except ValueError as error:
-        raise UserError(f"{path}: {error}") from None
+    return parse_camera_info(text, str(path))
 
 
 def read_json(path: Path) -> object:
-    """A JSON file of ours whose model is the caller's business (a dataset's records)."""
+    """A JSON file of ours whose model is the caller's business (a dataset's records), its nesting bounded."""
     try:
-        return json.loads(Path(path).read_text(encoding="utf-8"))
+        data = Path(path).read_bytes()
     except FileNotFoundError:
         raise UserError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+    except OSError:
         raise UserError(f"{path}: not a readable JSON file") from None
+    return load_json(data, str(path))

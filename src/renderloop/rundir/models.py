@@ -1,22 +1,46 @@
 """The JSON files of a run directory as pydantic models: what each holds, in SI units.
 
 Files are read strictly (unknown keys, wrong types, NaN or infinite numbers are
-errors), so a damaged or hand-edited file fails in one line naming the file and the
-field (`renderloop.rundir.files.read_model`) instead of deep inside a stage. The scene
+errors) and every number is bounded (the bounds below, which the run's tables share),
+so a damaged or hand-edited file fails in one line naming the file and the field
+(`renderloop.rundir.files.read_model`) instead of deep inside a stage. The scene
 (`scene.json`) has its own model in `renderloop.scene.model`.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, RootModel, model_validator
 
-Finite = Annotated[float, Field(allow_inf_nan=False)]
+from renderloop.config.fields import MAX_PLANTS, MAX_TABLES
+from renderloop.io.images import MAX_PIXELS
+from renderloop.scene.model import WORLD_BOUND
+
+# About 16 weeks: longer than any scan the config allows (the planner's slowest limits over the largest floor take
+# days), short enough that a time keeps its microseconds in a float64. Stage timings (wall-clock) share it.
+MAX_TIME = 1e7  # s
+# No two points within WORLD_BOUND of the origin on every axis are farther apart.
+MAX_DISTANCE = 2 * math.sqrt(3) * WORLD_BOUND  # m
+# A route visits each plant once: its legs add up to at most one MAX_DISTANCE per plant and one back.
+MAX_ROUTE = (MAX_PLANTS + 1) * MAX_DISTANCE  # m
+# Counts of fruit, frames and detections: far above what a run holds, small enough for every integer array.
+MAX_COUNT = 2**31 - 1
+
 Unit = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
-Count = Annotated[int, Field(ge=0)]
-NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]  # a distance, m, or a duration, s
-Point = tuple[Finite, Finite, Finite]
+Count = Annotated[int, Field(ge=0, le=MAX_COUNT)]
+Time = Annotated[float, Field(ge=0, le=MAX_TIME, allow_inf_nan=False)]  # simulation or wall-clock seconds
+Distance = Annotated[float, Field(ge=0, le=MAX_DISTANCE, allow_inf_nan=False)]  # m
+RouteLength = Annotated[float, Field(ge=0, le=MAX_ROUTE, allow_inf_nan=False)]  # m, legs added up
+Coordinate = Annotated[float, Field(ge=-WORLD_BOUND, le=WORLD_BOUND, allow_inf_nan=False)]  # m, world frame
+Point = tuple[Coordinate, Coordinate, Coordinate]
+Pixel = Annotated[float, Field(ge=0, le=MAX_PIXELS, allow_inf_nan=False)]  # no image side is longer
+Angle = Annotated[float, Field(ge=-2 * math.pi, le=2 * math.pi, allow_inf_nan=False)]  # rad
+Percent = Annotated[float, Field(ge=-100, le=100 * MAX_COUNT, allow_inf_nan=False)]  # 100 (estimate - x) / x, estimate >= 0
+PlantId = Annotated[int, Field(ge=0, lt=MAX_PLANTS)]
+RowId = Annotated[int, Field(ge=0, lt=MAX_TABLES)]
+Seed = Annotated[int, Field(ge=0, le=2**63 - 1)]
 
 
 class FileModel(BaseModel):
@@ -26,7 +50,7 @@ class FileModel(BaseModel):
 class Detection(FileModel):
     """One box: pixels with exclusive far edges; `position` is the fruit point in the world frame, m (null: no depth)."""
 
-    bbox: tuple[Finite, Finite, Finite, Finite]
+    bbox: tuple[Pixel, Pixel, Pixel, Pixel]
     score: Unit
     label: Literal["ripe", "unripe"]
     position: Point | None
@@ -41,7 +65,7 @@ class Detection(FileModel):
 
 class DetectionFrame(FileModel):
     index: Count  # the frame's line in groundtruth.txt
-    timestamp: Finite  # simulation seconds
+    timestamp: Time  # simulation seconds
     image: str  # the RGB image, relative to the run directory
     detections: list[Detection]
 
@@ -52,7 +76,7 @@ class Detections(FileModel):
     model: str
     score_threshold: Unit
     windows: list[str] = []  # window layouts (columns x rows) searched besides the whole frame
-    grid: int | None = Field(None, ge=1)  # what files written before the layouts said instead: windows per side
+    grid: int | None = Field(None, ge=1, le=MAX_COUNT)  # what files written before the layouts said instead: windows per side
     mirror: bool = False  # the mirrored frame searched too
     depth: str | None = None  # which depth stream gave the positions
     frames: list[DetectionFrame]
@@ -68,8 +92,8 @@ class DetectionScores(FileModel):
     false_detections: Count
     false_rate: Unit | None
     label_accuracy: Unit | None
-    position_error_median_m: Finite | None
-    position_error_p90_m: Finite | None
+    position_error_median_m: Distance | None
+    position_error_p90_m: Distance | None
 
 
 class CountInterval(FileModel):
@@ -88,8 +112,8 @@ class CountInterval(FileModel):
 
 
 class PlantCount(FileModel):
-    id: int
-    row: int
+    id: PlantId
+    row: RowId
     estimate: Count  # ripe fruit counted: the clusters, and counting.lone_credit of a fruit for each seen once
     truth: Count  # ripe fruit in the scene
     unripe_estimate: Count
@@ -105,7 +129,7 @@ class PlantCount(FileModel):
 
 
 class RowCount(FileModel):
-    id: int
+    id: RowId
     estimate: Count
     truth: Count
     unripe_estimate: Count
@@ -120,13 +144,13 @@ class RowCount(FileModel):
 class TotalCount(FileModel):
     estimate: Count
     truth: Count
-    error_pct: Finite | None  # 100 (estimate - truth) / truth; null when there is no ripe fruit
+    error_pct: Percent | None  # 100 (estimate - truth) / truth; null when there is no ripe fruit
     unripe_estimate: Count
     unripe_truth: Count
     exact_plants: Unit | None  # share of plants counted exactly
     unseen: Count | None = None  # ripe fruit no frame showed: the scan's misses, not the detector's
     too_small: Count | None = None  # ripe fruit seen, but never at the detector's findable size
-    seen_error_pct: Finite | None = None  # 100 (estimate - seen) / seen, seen = truth - unseen - too_small
+    seen_error_pct: Percent | None = None  # 100 (estimate - seen) / seen, seen = truth - unseen - too_small
     interval: CountInterval | None = None  # where the true ripe total lies: the rows' distributions convolved
 
 
@@ -151,11 +175,11 @@ class Counts(FileModel):
 
 
 class HarvestStop(FileModel):
-    id: int
-    row: int
+    id: PlantId
+    row: RowId
     expected_ripe: Count
     position: Point
-    leg_distance: NonNegative  # m, from the previous stop or the workstation
+    leg_distance: Distance  # m, from the previous stop or the workstation
 
 
 class Harvest(FileModel):
@@ -165,12 +189,12 @@ class Harvest(FileModel):
     distance: str  # how distances are measured
     min_ripe: Count
     stops: list[HarvestStop]
-    return_distance: NonNegative
-    total_distance: NonNegative
+    return_distance: Distance
+    total_distance: RouteLength
     total_expected_ripe: Count
 
 
-class Timings(RootModel[dict[str, NonNegative]]):
+class Timings(RootModel[dict[str, Time]]):
     """`timings.json`: seconds of the last run of each stage (`renderloop run`)."""
 
 
@@ -182,7 +206,7 @@ class RenderRecord(FileModel):
     frames: Count
     poses_sha256: str
     scene_sha256: str
-    seed: int
+    seed: Seed
     camera: dict[str, Any]
     renderer: dict[str, Any]
 
@@ -201,17 +225,17 @@ class Estimate(FileModel):
 class MissionView(FileModel):
     """A view flown to: where about the plant (viewpoints.View), when, and what it was expected to show."""
 
-    azimuth: Finite  # rad, counter-clockwise from world +x, about the plant's axis
-    height: Finite  # m above the canopy's middle
-    distance: Finite  # m, camera to the plant's axis, horizontally
-    time: Finite  # simulation s when the camera was asked for the frame
+    azimuth: Angle  # rad, counter-clockwise from world +x, about the plant's axis
+    height: Coordinate  # m above the canopy's middle
+    distance: Distance  # m, camera to the plant's axis, horizontally
+    time: Time  # simulation s when the camera was asked for the frame
     frame: Count | None  # its frame's index; null when the mission ended before it was taken
     unknown_cells: Count  # cells of the canopy it was expected to see for the first time
     uncertain_fruit: Count  # weakly supported fruit it was expected to see
 
 
 class MissionRound(FileModel):
-    decided_at: Finite  # simulation s
+    decided_at: Time  # simulation s
     why: str
     before: Estimate
     after: Estimate | None  # null when the mission ended before the round's frames were in
@@ -219,8 +243,8 @@ class MissionRound(FileModel):
 
 
 class MissionPlant(FileModel):
-    id: int
-    row: int
+    id: PlantId
+    row: RowId
     first_pass: Estimate
     final: Estimate
     rounds: list[MissionRound]
@@ -230,13 +254,13 @@ class MissionPlant(FileModel):
 class HarvestUpdate(FileModel):
     """The harvest plan as it stood after a decision: from the ripe estimates of the plants counted so far."""
 
-    time: Finite  # simulation s of the decision
-    row: int  # the row just decided
+    time: Time  # simulation s of the decision
+    row: RowId  # the row just decided
     round: Count  # 0: after the row's first pass; n: after its n-th round of added views
     plants_counted: Count  # plants whose row has been decided at least once
-    stops: list[int]  # plant ids in visiting order (harvest.json's rule)
+    stops: list[PlantId]  # plant ids in visiting order (harvest.json's rule)
     expected_ripe: Count
-    total_distance: NonNegative  # m
+    total_distance: RouteLength  # m
 
 
 class Mission(FileModel):
@@ -246,6 +270,6 @@ class Mission(FileModel):
     settings: dict[str, Any]  # the mission config
     frames: Count  # frames rendered in all
     first_pass_frames: Count
-    flight_time_s: Finite  # s, the whole mission (the hover at its end not included)
+    flight_time_s: Time  # s, the whole mission (the hover at its end not included)
     plants: list[MissionPlant]
     harvest: list[HarvestUpdate] = []  # the plan after each decision, as the counts settled

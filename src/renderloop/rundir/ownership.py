@@ -14,17 +14,27 @@ harmless; the other order could leave one of ours unlisted). Starting over remov
 only listed files, and renderloop refuses to replace a file at one of its own names
 that it did not write. A user's notes beside our outputs stay, `--force` or not.
 
+What renderloop writes or deletes inside an owned directory stays inside it: each path
+is resolved (links followed) and compared with the resolved directory, so a folder of
+a run that is a link to a user's folder (`rgb -> ~/photos`), or a listed name that
+climbs out (`rgb/../../elsewhere`, an absolute path), is refused in one line and
+nothing outside is written, created or deleted. The path given for the directory
+itself may pass through links (`/tmp -> /private/tmp`): only what lies below it is held
+to it.
+
 Runs and datasets written before the mark existed are adopted when they are plainly
 ours: their key file parses as renderloop's and every entry has one of our names.
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import os
 import shutil
 from collections.abc import Callable, Iterable
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
@@ -50,9 +60,30 @@ class Mark(BaseModel):
     kind: str
 
 
+def _real(path: Path | str) -> Path:
+    return Path(os.path.realpath(path))
+
+
+def _within(real: Path, root: Path) -> bool:
+    """Whether the resolved `real` is the resolved `root` or lies below it."""
+    return real == root or real.is_relative_to(root)
+
+
+def _append(path: Path, lines: Iterable[str]) -> None:
+    """Append to a bookkeeping file; one that is a link is refused, so the append never lands outside."""
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW, 0o666)
+    except OSError as error:
+        if error.errno == errno.ELOOP:
+            raise UserError(f"{path}: a link, not renderloop's file list; move it away") from None
+        raise
+    with open(fd, "a", encoding="utf-8") as out:
+        out.writelines(line + "\n" for line in lines)
+
+
 class _Ledger:
-    """The recorded files of one owned directory, read once and appended to; read again when another
-    process (or a start-over) has changed the file since."""
+    """The recorded files of one owned directory (by its resolved path), read once and appended to; read again when
+    another process (or a start-over) has changed the file since."""
 
     def __init__(self, root: Path) -> None:
         self.path = root / LEDGER
@@ -74,8 +105,7 @@ class _Ledger:
 
     def add(self, name: str) -> None:
         if name not in self.names:
-            with open(self.path, "a", encoding="utf-8") as ledger:
-                ledger.write(name + "\n")
+            _append(self.path, [name])
             self.names.add(name)
             self.stamp = self._stamp()
 
@@ -83,8 +113,18 @@ class _Ledger:
 _ledgers: dict[Path, _Ledger] = {}
 
 
+def _check_name(root: Path, name: str) -> str:
+    """A listed name is a relative path that stays below the directory; anything else is a file list not to act on."""
+    parts = PurePosixPath(name).parts
+    if name.startswith("/") or not parts or ".." in parts or "\0" in name:
+        raise UserError(f"{Path(root) / LEDGER}: lists {name!r}, which is not a path inside {root}; "
+                        "renderloop touches nothing outside the directory it owns (remove that line)")
+    return name
+
+
 def read_ledger(root: Path) -> list[str]:
-    """The files the ledger lists; a torn last line (a kill mid-append) is not a name we can trust, so it is dropped."""
+    """The files the ledger lists; a torn last line (a kill mid-append) is not a name we can trust, so it is dropped.
+    A name that is absolute or climbs out with `..` is refused here, before anything acts on it."""
     try:
         text = (Path(root) / LEDGER).read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -92,7 +132,7 @@ def read_ledger(root: Path) -> list[str]:
     except (OSError, UnicodeDecodeError):
         raise UserError(f"{Path(root) / LEDGER}: not a readable renderloop file list") from None
     lines = text.split("\n")
-    return list(dict.fromkeys(line for line in lines[:-1] if line))
+    return list(dict.fromkeys(_check_name(root, line) for line in lines[:-1] if line))
 
 
 def read_mark(directory: Path) -> Mark | None:
@@ -105,27 +145,51 @@ def read_mark(directory: Path) -> Mark | None:
         raise UserError(f"{path}: not a renderloop mark file; this directory is not one renderloop can use") from None
 
 
+def _replace_text(path: Path, text: str) -> None:
+    # atomic records its writes through this module, so it is imported here, when first needed
+    from renderloop.io.atomic import replaced
+
+    with replaced(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
 def _write_mark(directory: Path, kind: str) -> None:
-    tmp = directory / f"{MARK}.partial"
-    tmp.write_text(json.dumps({"renderloop": FORMAT_VERSION, "kind": kind}) + "\n", encoding="utf-8")
-    os.replace(tmp, directory / MARK)
+    _replace_text(directory / MARK, json.dumps({"renderloop": FORMAT_VERSION, "kind": kind}) + "\n")
 
 
 def _write_ledger(directory: Path, listed: list[str]) -> None:
-    tmp = directory / f"{LEDGER}.partial"
-    tmp.write_text("".join(name + "\n" for name in listed), encoding="utf-8")
-    os.replace(tmp, directory / LEDGER)
+    _replace_text(directory / LEDGER, "".join(name + "\n" for name in listed))
 
 
 def _files_under(directory: Path, names: Iterable[str]) -> list[str]:
+    """The files at or below each of `names`; links are neither listed nor followed (renderloop makes none, so a link
+    is the user's, and what it leads to is not ours)."""
     found = []
     for name in names:
         path = directory / name
+        if path.is_symlink():
+            continue
         if path.is_file():
             found.append(name)
         elif path.is_dir():
-            found += sorted(p.relative_to(directory).as_posix() for p in path.rglob("*") if p.is_file())
+            found += sorted(Path(folder, file).relative_to(directory).as_posix()
+                            for folder, _, files in os.walk(path) for file in files
+                            if not os.path.islink(os.path.join(folder, file)))
     return found
+
+
+def _clear_strays(root: Path) -> None:
+    """Remove the temporaries that processes of this machine left here when they were killed (a directory that carries
+    its own mark is left to its own claim)."""
+    from renderloop.io.atomic import TEMP_SUFFIX, stray
+
+    for folder, folders, files in os.walk(root):
+        depth = len(Path(folder).relative_to(root).parts)
+        folders[:] = [] if depth >= MAX_DEPTH - 1 else [f for f in folders if not os.path.isfile(os.path.join(folder, f, MARK))]
+        for file in files:
+            path = Path(folder, file)
+            if file.startswith(".") and file.endswith(TEMP_SUFFIX) and not path.is_symlink() and stray(path):
+                path.unlink(missing_ok=True)
 
 
 def claim(directory: Path, kind: str, adopt: Callable[[Path], bool] | None = None, write: bool = True) -> Path:
@@ -133,9 +197,12 @@ def claim(directory: Path, kind: str, adopt: Callable[[Path], bool] | None = Non
 
     `adopt` says whether a directory without the mark is one renderloop made before the mark existed.
     With `write` false the directory is only checked (nothing is created or marked), for a verb that
-    must first make sure its input is good.
+    must first make sure its input is good. One inside another owned directory (an evaluation's runs)
+    must not lead out of it through a link. Claimed to write, an owned directory loses the temporaries
+    that killed writers of this machine left in it (see `renderloop.io.atomic`).
     """
     directory = Path(directory)
+    _contained(directory)
     if directory.exists() and not directory.is_dir():
         raise UserError(f"{directory}: is a file, not a directory")
     if not directory.exists():
@@ -149,6 +216,8 @@ def claim(directory: Path, kind: str, adopt: Callable[[Path], bool] | None = Non
             raise UserError(f"{directory}: a renderloop {mark.kind} directory, not a {kind} directory; give another path")
         if mark.renderloop > FORMAT_VERSION:
             raise UserError(f"{directory}: written by a newer renderloop (format {mark.renderloop}); update renderloop")
+        if write:
+            _clear_strays(directory)
         return directory
     entries = [entry.name for entry in directory.iterdir()]
     if entries and not (adopt is not None and adopt(directory)):
@@ -156,22 +225,61 @@ def claim(directory: Path, kind: str, adopt: Callable[[Path], bool] | None = Non
     if not write:
         return directory
     if entries:  # an older renderloop's directory: everything in it is ours
-        with open(directory / LEDGER, "a", encoding="utf-8") as ledger:
-            ledger.writelines(name + "\n" for name in _files_under(directory, entries) if name not in BOOKKEEPING)
+        _append(directory / LEDGER, [name for name in _files_under(directory, entries) if name not in BOOKKEEPING])
     _write_mark(directory, kind)
     return directory
 
 
-def owner_of(path: Path) -> Path | None:
-    """The nearest owned directory above `path`, at most MAX_DEPTH levels up."""
-    parent = Path(path).parent
+def _plain(path: Path) -> Path:
+    """`path` made absolute with each `..` resolved as the file system resolves it (through links), the rest as given:
+    the directories above the rest are the ones the path really passes through."""
+    path = Path(path).absolute()
+    parts = path.parts
+    if ".." not in parts:
+        return path
+    last = len(parts) - 1 - parts[::-1].index("..")
+    return _real(Path(*parts[: last + 1])).joinpath(*parts[last + 1:])
+
+
+def _owners(path: Path) -> list[Path]:
+    """The owned directories above `path`, nearest first, at most MAX_DEPTH levels up."""
+    found, parent = [], path.parent
     for _ in range(MAX_DEPTH):
         if (parent / MARK).is_file():
-            return parent
+            found.append(parent)
         if parent.parent == parent:
             break
         parent = parent.parent
-    return None
+    return found
+
+
+def owner_of(path: Path) -> Path | None:
+    """The nearest owned directory above `path`, at most MAX_DEPTH levels up."""
+    owners = _owners(_plain(path))
+    return owners[0] if owners else None
+
+
+def _contained(path: Path) -> tuple[Path, Path, str] | None:
+    """For a path inside an owned directory: the directory as given, its resolved path, and the path's name in it.
+
+    The path and the folder it is in must resolve inside every owned directory above it, so that nothing written
+    there (the file, its temporary beside it) lands outside through a link; otherwise it is refused in one line.
+    None when no owned directory is above the path.
+    """
+    path = _plain(path)
+    owners = _owners(path)
+    if not owners:
+        return None
+    real, folder = _real(path), _real(path.parent)
+    for root in owners:
+        real_root = _real(root)
+        if not (_within(real, real_root) and _within(folder, real_root)):
+            leads = real if not _within(real, real_root) else folder
+            raise UserError(f"{path}: leads out of {root} through a link (to {leads}); "
+                            "renderloop writes nothing outside the directory it owns")
+    root = owners[0]
+    real_root = _real(root)
+    return root, real_root, (folder / path.name).relative_to(real_root).as_posix()
 
 
 def _ledger(root: Path) -> _Ledger:
@@ -181,39 +289,53 @@ def _ledger(root: Path) -> _Ledger:
     return ledger
 
 
-def record(path: Path) -> None:
-    """Note that renderloop is about to write `path`; refuse to replace a file of an owned directory that it did not write."""
-    path = Path(path).absolute()
-    root = owner_of(path)
-    if root is None:
-        return
-    name = path.relative_to(root).as_posix()
-    ledger = _ledger(root)
-    if name not in ledger.names and path.exists():
-        raise UserError(f"{path}: exists and renderloop did not write it; move it away or choose another directory")
+def record(path: Path) -> Path | None:
+    """Note that renderloop is about to write `path`; refuse to replace a file of an owned directory that it did not
+    write, and a path that leads out of that directory through a link. The owned directory, or None outside any."""
+    found = _contained(path)
+    if found is None:
+        return None
+    root, real_root, name = found
+    ledger = _ledger(real_root)
+    if name not in ledger.names and os.path.lexists(real_root / name):  # a dangling link at our name is not ours either
+        raise UserError(f"{_plain(path)}: exists and renderloop did not write it; move it away or choose another directory")
     ledger.add(name)
+    return root
 
 
 def remove_recorded(directory: Path, names: Iterable[str]) -> None:
     """Delete the files renderloop recorded under each of `names` (files or folders of `directory`), then the folders
-    left empty; nothing that is not listed is removed."""
-    directory = Path(directory).absolute()
+    left empty; nothing that is not listed is removed, and nothing outside `directory`: a listed file that a link
+    leads out of it refuses the whole removal before anything is deleted."""
+    shown = Path(directory).absolute()
+    root = _real(shown)
     prefixes = tuple(names)
-    listed = read_ledger(directory)
+    listed = read_ledger(shown)
     gone = [name for name in listed if name in prefixes or name.startswith(tuple(f"{p}/" for p in prefixes))]
     for name in gone:
-        (directory / name).unlink(missing_ok=True)
+        path = root / name
+        for leads in (_real(path.parent), _real(path)):
+            if not _within(leads, root):
+                raise UserError(f"{shown / LEDGER}: lists {name}, which leads out of {shown} through a link (to {leads}); "
+                                "renderloop deletes nothing outside the directory it owns")
+    for name in gone:
+        path = root / name
+        if path.is_symlink() or not path.is_dir():
+            path.unlink(missing_ok=True)
     for prefix in prefixes:
-        folder = directory / prefix
-        if folder.is_dir():
-            for sub in sorted((p for p in folder.rglob("*") if p.is_dir()), key=lambda p: len(p.parts), reverse=True):
-                if not any(sub.iterdir()):
-                    sub.rmdir()
-            if not any(folder.iterdir()):
-                folder.rmdir()
+        folder = root / prefix
+        if folder.is_symlink() or not folder.is_dir() or not _within(_real(folder), root):
+            continue  # a link is not entered: the folders it leads to are not ours to remove
+        for parent, folders, _ in os.walk(folder, topdown=False):  # the deepest first; links are not followed
+            for sub in folders:
+                if not os.path.islink(os.path.join(parent, sub)):
+                    with contextlib.suppress(OSError):  # not empty (the user's file, or another process's): it stays
+                        os.rmdir(os.path.join(parent, sub))
+        with contextlib.suppress(OSError):
+            folder.rmdir()
     removed = set(gone)
-    _write_ledger(directory, [name for name in listed if name not in removed])
-    _ledgers.pop(directory, None)
+    _write_ledger(root, [name for name in listed if name not in removed])
+    _ledgers.pop(root, None)
 
 
 def check_replaceable(target: Path, kind: str) -> None:
@@ -230,8 +352,10 @@ def replace_directory(staged: Path, target: Path, kind: str) -> None:
     staged, target = Path(staged), Path(target)
     _write_mark(staged, kind)
     check_replaceable(target, kind)
+    if target.is_symlink():  # moving a link aside and deleting "it" would delete what it leads to
+        raise UserError(f"{target}: a link; give the directory it leads to")
     if target.exists():
-        old = staged.parent / f"{target.name}.old"
+        old = staged.parent / ("old" if staged.name != "old" else "old-")  # inside the staging folder, removed with it
         os.replace(target, old)
         try:
             os.replace(staged, target)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from renderloop.config import Config, load_resolved
 from renderloop.errors import UserError
+from renderloop.parallel import LOCAL, Executor
 from renderloop.rundir import files, names, ownership
 from renderloop.scene.model import load_scene
 
@@ -27,9 +28,7 @@ class Job:
 
     force: bool = False
     progress: Progress | None = None
-    workers: int = 1  # processes (or Ray tasks) for the stages that spread work
-    executor: str = "local"  # local processes or a Ray cluster
-    address: str | None = None  # the Ray cluster; None starts a local one
+    executor: Executor = LOCAL  # where the stages that spread work run it
 
 
 @dataclass(frozen=True)
@@ -55,14 +54,14 @@ class Stage:
         return min(path.stat().st_mtime_ns for path in outputs) >= max(path.stat().st_mtime_ns for path in sources)
 
     def run(self, run_dir: Path, config: Config, force: bool = False, progress: Progress | None = None,
-            workers: int = 1, executor: str = "local", address: str | None = None) -> bool:
+            executor: Executor = LOCAL) -> bool:
         """Run the stage, or skip it when its outputs are complete and current; True when it ran."""
         run_dir = Path(run_dir)
         files.require(run_dir, self.needs)
         claim(run_dir, write=bool(self.needs))  # the first stage makes the directory once its input proved good
         if not force and (self.current is None or self.current(run_dir, config)) and self.complete(run_dir):
             return False
-        self.work(run_dir, config, Job(force, progress, workers, executor, address))
+        self.work(run_dir, config, Job(force, progress, executor))
         return True
 
 

@@ -15,6 +15,7 @@ import torch
 
 from renderloop.errors import UserError
 from renderloop.io.images import check_image, open_image
+from renderloop.perception.detector import CLASSES
 from renderloop.perception.training.torch_support import import_torchvision
 
 import_torchvision()
@@ -35,7 +36,37 @@ def read_coco(path: Path) -> dict:
     return data
 
 
-class PepperBoxes(torch.utils.data.Dataset):
+class _Boxes(torch.utils.data.Dataset):
+    """Images with their target boxes (x0, y0, x1, y1 in pixels), class ids (1 ripe, 2 unripe) and COCO image ids (what
+    the validation's results are matched to the labels by), as SSD's samples."""
+
+    def __init__(self, samples: list[tuple[Path, list[list[float]], list[int], int]], augment: bool) -> None:
+        self.samples = samples
+        steps = [v2.RandomPhotometricDistort(p=0.5), v2.RandomZoomOut(fill=FILL, side_range=(1.0, 2.0), p=0.3),
+                 v2.RandomIoUCrop(), v2.RandomHorizontalFlip()] if augment else []
+        self.transform = v2.Compose([*steps, v2.ToDtype(torch.float32, scale=True), v2.SanitizeBoundingBoxes()])
+
+    def __len__(self) -> int:
+        return len(self.samples)
+
+    def __getitem__(self, index: int) -> tuple[torch.Tensor, dict]:
+        path, boxes, labels, image_id = self.samples[index]
+        image = tv_tensors.Image(v2.functional.pil_to_tensor(open_image(path, "RGB")))
+        target = {
+            "boxes": tv_tensors.BoundingBoxes(torch.tensor(boxes, dtype=torch.float32).reshape(-1, 4), format="XYXY",
+                                              canvas_size=tuple(image.shape[-2:])),
+            "labels": torch.tensor(labels, dtype=torch.int64),
+            "image_id": image_id,
+        }
+        if len(boxes) == 0:  # the IoU crop needs a box to keep; a fruitless view is used as it is
+            image, target = v2.ToDtype(torch.float32, scale=True)(image, target)
+            return image, target
+        return self.transform(image, target)
+
+
+class PepperBoxes(_Boxes):
+    """One split of a dataset made by `renderloop dataset`."""
+
     def __init__(self, root: Path, split: str, augment: bool) -> None:
         self.root = Path(root)
         self.annotation_file = self.root / "annotations" / f"instances_{split}.json"
@@ -48,32 +79,32 @@ class PepperBoxes(torch.utils.data.Dataset):
             if not isinstance(image, dict) or not isinstance(image.get("file_name"), str) or "id" not in image:
                 raise UserError(f"{self.annotation_file}: images.{number}: needs an id and a file_name")
             check_image(self.root / image["file_name"])
-        self.targets: dict[int, list[dict]] = {image["id"]: [] for image in self.images}
+        targets: dict[int, list[dict]] = {image["id"]: [] for image in self.images}
         for ann in coco["annotations"]:
             if not ann["iscrowd"]:
-                self.targets[ann["image_id"]].append(ann)
-        steps = [v2.RandomPhotometricDistort(p=0.5), v2.RandomZoomOut(fill=FILL, side_range=(1.0, 2.0), p=0.3),
-                 v2.RandomIoUCrop(), v2.RandomHorizontalFlip()] if augment else []
-        self.transform = v2.Compose([*steps, v2.ToDtype(torch.float32, scale=True), v2.SanitizeBoundingBoxes()])
+                targets[ann["image_id"]].append(ann)
+        super().__init__([(self.root / image["file_name"],
+                           [[x, y, x + w, y + h] for x, y, w, h in (a["bbox"] for a in targets[image["id"]])],
+                           [a["category_id"] for a in targets[image["id"]]], image["id"]) for image in self.images], augment)
 
-    def __len__(self) -> int:
-        return len(self.images)
 
-    def __getitem__(self, index: int) -> tuple[torch.Tensor, dict]:
-        info = self.images[index]
-        path = self.root / info["file_name"]
-        image = tv_tensors.Image(v2.functional.pil_to_tensor(open_image(path, "RGB")))
-        anns = self.targets[info["id"]]
-        boxes = torch.tensor([[x, y, x + w, y + h] for x, y, w, h in (a["bbox"] for a in anns)], dtype=torch.float32).reshape(-1, 4)
-        target = {
-            "boxes": tv_tensors.BoundingBoxes(boxes, format="XYXY", canvas_size=tuple(image.shape[-2:])),
-            "labels": torch.tensor([a["category_id"] for a in anns], dtype=torch.int64),
-            "image_id": info["id"],
-        }
-        if len(anns) == 0:  # the IoU crop needs a box to keep; a fruitless view is used as it is
-            image, target = v2.ToDtype(torch.float32, scale=True)(image, target)
-            return image, target
-        return self.transform(image, target)
+class PhotoBoxes(_Boxes):
+    """A user's own labelled photos (a COCO file and its photo folder, as `renderloop score-photos` reads them), for the
+    last step of the paper's recipe: renders first, then a few real photos. A box's class is its category's ripeness
+    (a category named ripe, red, yellow, orange, unripe or green), else `fallback` (one class for a set that names
+    none); with neither, the photos cannot be trained on."""
+
+    def __init__(self, folder: Path, coco: Path, fallback: str | None, augment: bool) -> None:
+        from renderloop.perception.photo_score import read_labels
+
+        self.annotation_file = Path(coco)
+        labels = read_labels(coco, folder)
+        if not labels.by_class and fallback is None:
+            raise UserError(f"--coco {coco}: its categories name no ripeness (ripe, red, yellow, orange, unripe, green); "
+                            "give --photo-class ripe or unripe")
+        ids = {name: number + 1 for number, name in enumerate(CLASSES)}
+        super().__init__([(image.path, image.boxes.tolist(), [ids[label or fallback] for label in image.classes], image.id)
+                          for image in labels.images], augment)
 
 
 def collate(batch: list) -> tuple[list, list]:

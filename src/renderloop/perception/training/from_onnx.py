@@ -20,7 +20,7 @@ from torch import nn
 
 from renderloop.errors import UserError
 
-__all__ = ["weights_from_onnx", "freeze_batch_norms"]
+__all__ = ["weights_from_onnx", "freeze_batch_norms", "onnx_metadata"]
 
 
 def _module_name(node_name: str) -> str:
@@ -33,6 +33,17 @@ def _module_name(node_name: str) -> str:
             name = f"{name}.{part}" if name else part
         previous = part
     return name.removeprefix("model.")
+
+
+def onnx_metadata(path: Path) -> dict[str, str]:
+    """The metadata properties of a renderloop ONNX model (which detector, classes, training figures)."""
+    import onnx
+
+    try:
+        model = onnx.load(str(path), load_external_data=False)
+    except Exception as error:  # onnx raises its own decode errors, of several types
+        raise UserError(f"--init {path}: not an ONNX model ({type(error).__name__})") from None
+    return {entry.key: entry.value for entry in model.metadata_props}
 
 
 def weights_from_onnx(path: Path, model: nn.Module) -> dict[str, torch.Tensor]:

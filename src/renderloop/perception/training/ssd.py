@@ -1,7 +1,7 @@
 """The detector network and its ONNX form.
 
-torchvision's `ssdlite320_mobilenet_v3_large`, from scratch (no weights can be
-downloaded), classes background, ripe, unripe. The ONNX graph holds the network
+torchvision's SSDlite (320x320) over one of the backbones of
+`renderloop.perception.training.backbones`, classes background, ripe, unripe. The ONNX graph holds the network
 and the box decoding, not the per-class filtering and NMS: those run in numpy
 after ONNX Runtime (`renderloop.perception.detector`), the same code for every
 backend, so the exported file has no data-dependent shapes and its outputs can be
@@ -24,9 +24,15 @@ from renderloop.perception.detector import CLASSES, INPUT_SIZE
 from renderloop.perception.training.torch_support import import_torchvision
 
 torchvision = import_torchvision()
+from torchvision.models.detection import _utils as det_utils
 from torchvision.models.detection import ssdlite320_mobilenet_v3_large
 from torchvision.models.detection.anchor_utils import DefaultBoxGenerator
 from torchvision.models.detection.image_list import ImageList
+from torchvision.models.detection.ssd import SSD
+from torchvision.models.detection.ssdlite import SSDLiteHead
+
+from renderloop.config.training import BACKBONES, DEFAULT_BACKBONE, MOBILENET_V3
+from renderloop.perception.training.backbones import NORM, lite0_extractor
 
 OPSET = 17
 # Default-box scales (fraction of the input) of the six feature maps, and the extra one
@@ -37,10 +43,38 @@ OPSET = 17
 ANCHOR_SCALES = [0.04, 0.08, 0.16, 0.32, 0.52, 0.76, 1.0]
 
 
-def build_model() -> nn.Module:
-    model = ssdlite320_mobilenet_v3_large(weights=None, weights_backbone=None, num_classes=len(CLASSES) + 1)
-    model.anchor_generator = DefaultBoxGenerator([[2, 3] for _ in range(6)], scales=ANCHOR_SCALES)
+# What torchvision's SSDlite sets besides the network; the inputs go from [0, 1] to [-1, 1], which is also
+# EfficientNet-Lite's (x - 127) / 128 on 8-bit values.
+SSD_SETTINGS = {"score_thresh": 0.001, "nms_thresh": 0.55, "detections_per_img": 300, "topk_candidates": 300,
+                "image_mean": [0.5, 0.5, 0.5], "image_std": [0.5, 0.5, 0.5]}
+
+
+def build_model(backbone: str = DEFAULT_BACKBONE, pretrained: bool = True) -> nn.Module:
+    """The detector over `backbone`; `pretrained` loads the backbone's ImageNet weights where it has them (weights
+    loaded afterwards, from a checkpoint or an ONNX model, make it moot)."""
+    anchors = DefaultBoxGenerator([[2, 3] for _ in range(6)], scales=ANCHOR_SCALES)
+    if backbone == MOBILENET_V3:
+        model = ssdlite320_mobilenet_v3_large(weights=None, weights_backbone=None, num_classes=len(CLASSES) + 1)
+        model.anchor_generator = anchors
+        model.renderloop_backbone = backbone
+        return model
+    extractor = lite0_extractor(pretrained)
+    size = (INPUT_SIZE, INPUT_SIZE)
+    channels = det_utils.retrieve_out_channels(extractor, size)
+    head = SSDLiteHead(channels, anchors.num_anchors_per_location(), len(CLASSES) + 1, NORM)
+    model = SSD(extractor, anchors, size, len(CLASSES) + 1, head=head, **SSD_SETTINGS)
+    model.renderloop_backbone = backbone  # what the exported model's metadata names
     return model
+
+
+def detector_name(backbone: str) -> str:
+    """The name an exported model carries in its metadata (`renderloop_detector`)."""
+    return "ssdlite320_mobilenet_v3_large" if backbone == MOBILENET_V3 else f"ssdlite320_{backbone.replace('-', '_')}"
+
+
+def backbone_of(name: str) -> str | None:
+    """The backbone a `renderloop_detector` name was built on; None for a name renderloop does not write."""
+    return next((backbone for backbone in BACKBONES if detector_name(backbone) == name), None)
 
 
 class DecodedSSD(nn.Module):
@@ -66,7 +100,7 @@ class DecodedSSD(nn.Module):
 
 
 def export_onnx(model: nn.Module, path: Path, metadata: dict[str, str] | None = None) -> None:
-    """Write the ONNX graph (classic TorchScript exporter, opset 17) with the classes in its metadata."""
+    """Write the ONNX graph (classic TorchScript exporter, opset 17) with the backbone and the classes in its metadata."""
     import onnx
 
     from renderloop.io.atomic import atomic_path
@@ -77,7 +111,7 @@ def export_onnx(model: nn.Module, path: Path, metadata: dict[str, str] | None = 
         torch.onnx.export(wrapper, (torch.zeros(1, 3, INPUT_SIZE, INPUT_SIZE),), str(tmp), input_names=["images"],
                           output_names=["boxes", "scores"], opset_version=OPSET, dynamo=False)
         graph = onnx.load(str(tmp))
-        entries = {"renderloop_detector": "ssdlite320_mobilenet_v3_large", "classes": ",".join(CLASSES), **(metadata or {})}
+        entries = {"renderloop_detector": detector_name(model.renderloop_backbone), "classes": ",".join(CLASSES), **(metadata or {})}
         for key, value in entries.items():
             graph.metadata_props.add(key=key, value=str(value))
         onnx.save(graph, str(tmp))

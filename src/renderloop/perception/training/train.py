@@ -1,7 +1,10 @@
-"""`renderloop train`: the pepper detector from scratch on a renderloop COCO dataset.
+"""`renderloop train`: the pepper detector on renderloop COCO datasets.
 
-AdamW with a linear warm-up and a cosine decay over all epochs (a short schedule
-from random weights converges faster with it than with SSD's SGD recipe); after
+The network starts from its backbone's ImageNet weights (`backbones`), from random
+weights (`--backbone mobilenet-v3`) or from an earlier model (`--init`). AdamW with a
+linear warm-up and a cosine decay over all epochs; the pretrained layers learn at a
+fraction of the rate of the new ones (`backbone_lr_factor`): at the full rate AdamW
+wipes out what they learned on ImageNet within a few hundred steps. After
 every epoch a checkpoint (model, optimiser, schedule, history, RNG states) that a
 later `renderloop train` with the same settings resumes from, and COCO mAP on the
 validation split (pycocotools). At the end the model is exported to ONNX and a
@@ -21,26 +24,16 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from renderloop.config.training import MOBILENET_V3, TrainSettings
 from renderloop.errors import UserError
 from renderloop.io.atomic import atomic_path, write_json
 from renderloop.perception.detector import CLASSES
-from renderloop.perception.training.data import PepperBoxes, collate
-from renderloop.perception.training.from_onnx import freeze_batch_norms, weights_from_onnx
-from renderloop.perception.training.ssd import build_model, export_onnx
+from renderloop.perception.training.data import PepperBoxes, PhotoBoxes, collate
+from renderloop.perception.training.from_onnx import freeze_batch_norms, onnx_metadata, weights_from_onnx
+from renderloop.perception.training.ssd import backbone_of, build_model, export_onnx
 from renderloop.perception.training.validate import coco_map
 
 Log = Callable[[str], None]
-
-
-@dataclass(frozen=True)
-class TrainSettings:
-    epochs: int = 30
-    batch_size: int = 32
-    learning_rate: float = 3e-3
-    weight_decay: float = 1e-4
-    warmup_steps: int = 200
-    seed: int = 0
-    max_steps: int | None = None  # stop early (tests); the schedule still spans `epochs`
 
 
 def _device(name: str) -> torch.device:
@@ -89,10 +82,24 @@ def _load_checkpoint(path: Path, device: torch.device) -> dict:
     return state
 
 
-def _initial_weights(path: Path, model: torch.nn.Module) -> dict:
+def _parameter_groups(model: torch.nn.Module, settings: TrainSettings) -> list[dict]:
+    """The pretrained backbone at its fraction of the learning rate, the rest at the full rate; a network from random
+    weights learns at the full rate throughout."""
+    if settings.backbone == MOBILENET_V3:
+        return [{"params": list(model.parameters())}]
+    pretrained = {id(p) for p in model.backbone.features.parameters()}
+    backbone = [p for p in model.parameters() if id(p) in pretrained]
+    rest = [p for p in model.parameters() if id(p) not in pretrained]
+    return [{"params": backbone, "lr": settings.learning_rate * settings.backbone_lr_factor}, {"params": rest}]
+
+
+def _initial_weights(path: Path, model: torch.nn.Module, backbone: str) -> dict:
     """The model weights of an earlier run's checkpoint, or of a renderloop ONNX detector (the shipped one, say):
     fine-tuning on a grown or new dataset starts there."""
     if path.suffix == ".onnx":
+        built_on = backbone_of(onnx_metadata(path).get("renderloop_detector", ""))
+        if built_on is not None and built_on != backbone:
+            raise UserError(f"--init {path}: a detector on {built_on}; train it with --backbone {built_on}")
         return weights_from_onnx(path, model)
     try:
         return torch.load(path, map_location="cpu", weights_only=True)["model"]
@@ -100,11 +107,42 @@ def _initial_weights(path: Path, model: torch.nn.Module) -> dict:
         raise UserError(f"--init {path}: not a renderloop training checkpoint ({type(error).__name__})") from None
 
 
+def backbone_of_init(path: Path) -> str:
+    """The backbone the weights at `path` were trained on: an ONNX detector's metadata says it; a checkpoint's record
+    does (a record without one is of the random-weights MobileNetV3, the only backbone before there was a choice)."""
+    path = Path(path)
+    if path.suffix == ".onnx":
+        name = onnx_metadata(path).get("renderloop_detector", "")
+        built_on = backbone_of(name)
+        if built_on is None:
+            raise UserError(f"--init {path}: not a renderloop detector (its metadata names {name!r}); give --backbone")
+        return built_on
+    try:
+        record = torch.load(path, map_location="cpu", weights_only=True)["record"]
+    except (OSError, RuntimeError, KeyError, TypeError, EOFError, pickle.UnpicklingError) as error:
+        raise UserError(f"--init {path}: not a renderloop training checkpoint ({type(error).__name__})") from None
+    return record.get("settings", {}).get("backbone", MOBILENET_V3)
+
+
+@dataclass(frozen=True)
+class Photos:
+    """A user's labelled photos to train on besides (or instead of) renders: the folder, its COCO file, and the class
+    of boxes whose category names no ripeness (None: every category must name one)."""
+
+    folder: Path
+    coco: Path
+    fallback_class: str | None = None
+
+
 def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettings, device: str = "auto", workers: int = 1,
-                   log: Log = print, init: Path | None = None) -> dict:
-    """Train on the train splits of one or more datasets together; each one's val split is scored apart
-    (figures of sets of different difficulty would not mean anything mixed), the first's as the headline figures."""
+                   log: Log = print, init: Path | None = None, photos: Photos | None = None) -> dict:
+    """Train on the train splits of one or more datasets together, and on `photos` if given; each dataset's val split
+    is scored apart (figures of sets of different difficulty would not mean anything mixed), the first's as the
+    headline figures. Photos have no validation split: score the model on photos it did not train on with
+    `renderloop score-photos`."""
     datasets, out = [Path(d) for d in (datasets if isinstance(datasets, list) else [datasets])], Path(out)
+    if not datasets and photos is None:
+        raise UserError("give a dataset folder made by `renderloop dataset`, or --photos with --coco, to train on")
     if out.suffix != ".onnx":
         raise UserError(f"--out {out}: the model file must end in .onnx")
     checkpoint_path = out.with_suffix(".ckpt")
@@ -115,6 +153,8 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
     out.parent.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(settings.seed)
     parts = [PepperBoxes(dataset, "train", augment=True) for dataset in datasets]
+    if photos is not None:
+        parts.append(PhotoBoxes(photos.folder, photos.coco, photos.fallback_class, augment=True))
     val_sets = [PepperBoxes(dataset, "val", augment=False) for dataset in datasets]
     for part in parts:
         if len(part) == 0:
@@ -126,15 +166,16 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
         collate_fn=collate, num_workers=workers, persistent_workers=workers > 0,
         generator=torch.Generator().manual_seed(settings.seed),
     )
-    model = build_model()
+    model = build_model(settings.backbone, pretrained=init is None)
     frozen_norms = init is not None and Path(init).suffix == ".onnx"  # its batch norms are folded: keep them as they are
     if init is not None:
-        model.load_state_dict(_initial_weights(Path(init), model))
+        model.load_state_dict(_initial_weights(Path(init), model, settings.backbone))
     model = model.to(run_device)
-    optimizer = torch.optim.AdamW(model.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay)
+    optimizer = torch.optim.AdamW(_parameter_groups(model, settings), lr=settings.learning_rate, weight_decay=settings.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _schedule(settings, len(loader)))
-    schedule = {k: v for k, v in asdict(settings).items() if k != "max_steps"}  # what a resumed run must share
+    schedule = settings.model_dump(exclude={"max_steps"})  # what a resumed run must share
     record = {"settings": schedule, "init": str(init) if init else None, "frozen_batch_norms": frozen_norms, "datasets": [str(d) for d in datasets],
+              "photos": {key: str(value) for key, value in asdict(photos).items()} if photos else None,
               "train_images": len(train_set), "val_images": [len(v) for v in val_sets], "classes": list(CLASSES), "history": []}
     start_epoch = 0
     if checkpoint_path.is_file():
@@ -172,7 +213,7 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
                 break
         seconds = time.perf_counter() - began
         scores = [coco_map(model, val_set, run_device) if len(val_set) else {} for val_set in val_sets]
-        entry = {"epoch": epoch + 1, "loss": float(np.mean(losses)), "images_per_s": seen / seconds, **scores[0]}
+        entry = {"epoch": epoch + 1, "loss": float(np.mean(losses)), "images_per_s": seen / seconds, **(scores[0] if scores else {})}
         if len(datasets) > 1:
             entry["val"] = {str(dataset): figures for dataset, figures in zip(datasets, scores)}
         record["history"].append(entry)

