@@ -1,7 +1,7 @@
 """Speed of perception: ONNX detector ms per 640x480 frame of peppers (the whole frame alone, with 2x2
-windows, and the default: 2x2 and 3x2 windows and the mirrored frame), organised point cloud ms per 640x480 frame
-(side by side with Open3D's `create_from_depth_image` when Open3D is installed), training
-images per second.
+windows, and the default: 2x2 and 3x2 windows and the mirrored frame), one pass of each backbone's network on one
+core, organised point cloud ms per 640x480 frame (side by side with Open3D's `create_from_depth_image` when Open3D
+is installed), training images per second of each backbone.
 
     .venv/bin/python benchmarks/detect.py [--repeats 30] [--train-steps 5] [--json out.json]
 """
@@ -88,15 +88,36 @@ def torch_and_onnx_ms(frame: np.ndarray, repeats: int) -> tuple[list[float], lis
     return torch_ms, timed(lambda: onnx.detect(frame, 0.5), repeats)
 
 
+def backbone_pass_ms(frame: np.ndarray, repeats: int) -> dict[str, dict]:
+    """One pass of the whole frame through each backbone's detector (random weights: speed does not depend on them)
+    with ONNX Runtime on one core, side by side."""
+    import tempfile
+    from pathlib import Path
+
+    from renderloop.config.training import BACKBONES
+    from renderloop.perception.training.ssd import build_model, export_onnx
+
+    figures = {}
+    for backbone in BACKBONES:
+        with tempfile.TemporaryDirectory() as folder:
+            path = Path(folder) / f"{backbone}.onnx"
+            export_onnx(build_model(backbone, pretrained=False).eval(), path)
+            detector = Detector(path, threads=1)
+        figures[backbone] = summary(timed(lambda: detector.detect(frame, 0.5), repeats))
+    return figures
+
+
 def training_images_per_second(steps: int, batch: int = 16) -> dict[str, float]:
+    """Training images a second of each backbone's detector, on the CPU (and the GPU where there is one)."""
     import torch
 
+    from renderloop.config.training import BACKBONES
     from renderloop.perception.training.ssd import build_model
 
     rates = {}
     devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
-    for device in devices:
-        model = build_model().to(device).train()
+    for device, backbone in ((d, b) for d in devices for b in BACKBONES):
+        model = build_model(backbone, pretrained=False).to(device).train()
         optimizer = torch.optim.AdamW(model.parameters(), lr=1e-3)
         images = [torch.rand(3, 240, 320, device=device) for _ in range(batch)]
         targets = [{"boxes": torch.tensor([[40.0, 50, 80, 100]], device=device), "labels": torch.tensor([1], device=device)}] * batch
@@ -111,7 +132,7 @@ def training_images_per_second(steps: int, batch: int = 16) -> dict[str, float]:
                 torch.cuda.synchronize()
             if step:
                 times.append(batch / (time.perf_counter() - start))
-        rates[device] = statistics.median(times)
+        rates[f"{device} {backbone}"] = statistics.median(times)
     return rates
 
 
@@ -133,6 +154,7 @@ def main() -> None:
                                                        args.repeats)),
         "cloud_ms_per_frame": summary(timed(lambda: organised_cloud(depth, intrinsics), args.repeats)),
     }
+    figures.update({f"one_pass_1_core_ms {name}": value for name, value in backbone_pass_ms(frame, args.repeats).items()})
     torch_ms, onnx_ms = torch_and_onnx_ms(frame, args.repeats)
     figures["torch_model_ms_per_frame"] = summary(torch_ms)
     figures["same_model_onnx_ms_per_frame"] = summary(onnx_ms)

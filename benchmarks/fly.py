@@ -8,7 +8,7 @@ along that flight) and its physics (the same states, stepped); and the whole
 `renderloop fly` process on the whole scan (interpreter start, imports, flight,
 flight.csv, groundtruth.txt and plots), the figure issue 23 asks to be at least 100x.
 The compiled controller's cache is warm by then (the flights in this process fill it;
-a first flight after an install or an edit of control/kernel.py compiles it, seconds).
+a first flight after an install or an edit of robot/kernel.py compiles it, seconds).
 Reference: 1x real time (Gazebo/RotorS runs at about 1x). Median over repeats, with
 min and max.
 
@@ -37,7 +37,7 @@ import renderloop.sim.flight as flight_module
 from renderloop.config import Config, load_config
 from renderloop.io.csvtable import read_csv
 from renderloop.planning.stage import run_plan
-from renderloop.planning.trajectory import HEADER
+from renderloop.rundir.files import TRAJECTORY_HEADER
 from renderloop.rundir.files import FLIGHT_HEADER
 from renderloop.scene.stage import run_scene
 from renderloop.sim.flight import Flight, Reference, fly, resample
@@ -140,7 +140,7 @@ def main() -> None:
         run_dir = Path(tmp)
         run_scene(run_dir, config)
         run_plan(run_dir, config)
-        table = read_csv(run_dir / "trajectory.csv", HEADER)
+        table = read_csv(run_dir / "trajectory.csv", TRAJECTORY_HEADER)
         model = mujoco.MjModel.from_xml_path(str(run_dir / "world.xml"))
         count = min(len(table), int(args.seconds * config.planner.sample_rate_hz) + 1)
         reference = Reference(table[:count, 0], table[:count, 1:8], table[:count, 8:15], table[:count, 15:22])

@@ -49,6 +49,7 @@ from renderloop.counting.uncertainty import (
     plant_pmf,
 )
 from renderloop.rundir import files
+from renderloop.scene.model import read_scene
 
 # The grid: fine where a parameter first widens an interval at 90 % (a weak cluster false with 5 % or more, a Poisson
 # of mean 0.0513 or more giving a hidden fruit 5 % of the time), and up to a hidden fruit a plant, for a detector
@@ -90,7 +91,7 @@ def gather(run: Path, everies: list[int], interval: IntervalConfig) -> tuple[lis
     """Every plant's evidence at each thinning, and the seconds each took (the redraws' cost)."""
     config = files.read_config(run)
     counting = config.counting.model_copy(update={"interval": interval})
-    scene = files.read_scene(run)
+    scene = read_scene(run)
     times, poses = files.read_poses(run)
     detections = files.read_detections(run, len(times))
     cameras = {index: pose[:3, 3] for index, pose in enumerate(poses)}
@@ -109,7 +110,7 @@ def first_pass(run: Path) -> list[Case]:
     """An adaptive run's plants as its mission judged them at each row's first decision (module docstring); every
     case's `every` is 1."""
     config = files.read_config(run)
-    scene = files.read_scene(run)
+    scene = read_scene(run)
     times, poses = files.read_poses(run)
     detections = files.read_detections(run, len(times))
     mission = files.read_mission(run)

@@ -22,7 +22,8 @@ from renderloop.perception.detector import Detector
 from renderloop.perception.scoring import RunScore
 from renderloop.render.camera import Intrinsics
 from renderloop.render.cycles import CyclesRenderer
-from renderloop.rundir.files import read_config, read_poses, read_scene
+from renderloop.rundir.files import read_config, read_poses
+from renderloop.scene.model import read_scene
 
 
 def main() -> None:

@@ -24,8 +24,12 @@ from PIL import Image
 
 from renderloop.errors import UserError
 from renderloop.io.bounded import MAX_DEPTH, json_depth, load_json, load_yaml
+from renderloop.planning.waypoints import read_waypoints
+from renderloop.render.camera import read_camera_info
 from renderloop.render.frames import read_png
-from renderloop.rundir import contents, files, names
+from renderloop.export import contents
+from renderloop.rundir import files, names
+from renderloop.scene.model import read_scene
 
 ERROR = "renderloop: error: "
 
@@ -100,14 +104,14 @@ def test_a_nan_or_huge_pepper_centre_or_an_infinite_radius_stops_plan_in_one_lin
 def test_a_scene_that_names_a_plant_it_lacks_is_refused_by_field(run: Path):
     _edit_scene(run, lambda scene: scene["peppers"][0].update(plant=len(scene["plants"])))
     with pytest.raises(UserError) as error:
-        files.read_scene(run)
+        read_scene(run)
     assert "scene.json: peppers.0.plant:" in _one_line(error) and "is not a plant of the scene" in str(error.value)
 
 
 def test_a_direction_that_is_not_a_unit_vector_is_refused(run: Path):
     _edit_scene(run, lambda scene: scene["peppers"][0].update(axis=[0.0, 0.0, 0.0]))
     with pytest.raises(UserError) as error:
-        files.read_scene(run)
+        read_scene(run)
     assert "scene.json: peppers.0.axis: [0.0, 0.0, 0.0] is not a unit vector" in _one_line(error)
 
 
@@ -164,7 +168,7 @@ def test_groundtruth_times_never_go_back(run: Path):
 def test_a_waypoint_of_an_unknown_side_or_plant_is_refused(run: Path):
     _set_number(run / names.WAYPOINTS, 1, 2, "9999999")
     with pytest.raises(UserError, match=r"waypoints\.csv: row 1 has 9999999 in column plant, out of range \[-1, 4999\]"):
-        files.read_waypoints(run)
+        read_waypoints(run)
 
 
 # camera_info.yaml -----------------------------------------------------------------------------------------------------
@@ -179,7 +183,7 @@ def test_a_camera_info_size_or_matrix_out_of_bounds_is_one_line(run: Path, old: 
     path = run / names.CAMERA_INFO
     path.write_text(re.sub(old, new, path.read_text(), count=1))
     with pytest.raises(UserError) as error:
-        files.read_camera_info(run)
+        read_camera_info(run)
     assert _one_line(error).startswith(f"{path}: ") and message in str(error.value)
 
 
@@ -203,10 +207,10 @@ def test_a_yaml_config_nested_thousands_deep_is_one_line_and_writes_nothing(tmp_
 
 @pytest.mark.parametrize(("name", "text", "read"), [
     (names.CONFIG, _deep_yaml("camera"), files.read_config),
-    (names.CAMERA_INFO, "[" * DEEP + "]" * DEEP, files.read_camera_info),
-    (names.CAMERA_INFO, "camera_matrix: " + "{a: " * DEEP + "1" + "}" * DEEP, files.read_camera_info),
-    (names.SCENE, "[" * DEEP + "]" * DEEP, files.read_scene),
-    (names.SCENE, '{"rows": ' + '{"a": ' * DEEP + "1" + "}" * DEEP + "}", files.read_scene),
+    (names.CAMERA_INFO, "[" * DEEP + "]" * DEEP, read_camera_info),
+    (names.CAMERA_INFO, "camera_matrix: " + "{a: " * DEEP + "1" + "}" * DEEP, read_camera_info),
+    (names.SCENE, "[" * DEEP + "]" * DEEP, read_scene),
+    (names.SCENE, '{"rows": ' + '{"a": ' * DEEP + "1" + "}" * DEEP + "}", read_scene),
     (names.COUNTS, "[" * DEEP + "]" * DEEP, files.read_counts),
 ], ids=["config.yaml", "camera_info-flow", "camera_info-mapping", "scene-list", "scene-object", "counts"])
 def test_a_run_file_nested_thousands_deep_is_one_line_naming_it(run: Path, name: str, text: str, read):

@@ -13,7 +13,7 @@ from conftest import cli
 from renderloop.cli import app
 from renderloop.config import load_config
 from renderloop.io.atomic import dumps_json
-from renderloop.rundir.ownership import BOOKKEEPING
+from renderloop.io.ownership import BOOKKEEPING
 from renderloop.scene.generate import generate_scene
 
 SCENE_FILES = {*BOOKKEEPING, "config.yaml", "scene.json", "world.xml", "scene_topview.png"}  # and our mark and file list

@@ -17,7 +17,7 @@ from conftest import cli
 
 from renderloop.errors import UserError
 from renderloop.io import atomic
-from renderloop.rundir import ownership
+from renderloop.io import ownership
 
 
 def _tree(folder: Path) -> dict[str, bytes]:

@@ -44,7 +44,7 @@ from renderloop.io.atomic import dumps_json
 from renderloop.io.tum import write_tum
 from renderloop.rundir import files
 from renderloop.rundir.files import read_counts, write_config
-from renderloop.scene.model import Scene
+from renderloop.scene.model import Scene, read_scene
 
 FRAMES = 40
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -417,7 +417,7 @@ def test_counts_tell_fruit_the_scan_never_showed_from_the_detectors_misses(compl
     assert before.total.unseen == sum(p.unseen for p in before.plants)
     masks = sorted((run / "masks").iterdir())
     shown = {int(i) for path in masks for i in np.unique(read_png(path, np.uint16)) if i}
-    scene = files.read_scene(run)
+    scene = read_scene(run)
     hidden = next(p for p in scene.peppers if p.ripe and p.id in shown)
     for path in masks:  # as if every view had the fruit behind a leaf
         mask = read_png(path, np.uint16)

@@ -16,7 +16,7 @@ from renderloop.dataset.views import random_view
 from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
 from renderloop.render.raster import RasterRenderer
-from renderloop.rundir.ownership import LEDGER, read_ledger
+from renderloop.io.ownership import LEDGER, read_ledger
 
 TINY = DatasetSpec(seed=3, width=64, height=48, views_per_scene=2, samples=(1,), val_every=2)
 

@@ -17,9 +17,10 @@ from renderloop.perception.fruit_points import CENTRE_BEHIND_SKIN, MAX_RADIUS
 from renderloop.perception.stage import run_detect, with_detector
 from renderloop.perception.threshold import ThresholdScore, choose, score_thresholds, search_run
 from renderloop.perception.training.ssd import export_onnx
+from renderloop.render.camera import read_camera_info
 from renderloop.render.frames import decode_depth, read_png
 from renderloop.render.stage import run_render
-from renderloop.rundir.files import read_camera_info, read_config, read_poses
+from renderloop.rundir.files import read_config, read_poses
 from renderloop.rundir.names import DETECT_CACHE as CACHE
 
 

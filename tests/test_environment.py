@@ -17,9 +17,9 @@ from renderloop.planning.stage import run_plan
 from renderloop.planning.waypoints import plan_waypoints
 from renderloop.render.camera import Intrinsics
 from renderloop.robot.kinematics import look_at
-from renderloop.rundir import files, names
+from renderloop.rundir import names
 from renderloop.scene.generate import generate_scene
-from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Scene
+from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Scene, read_scene
 from renderloop.scene.objects import collision_objects, greenhouse_objects
 from renderloop.scene.stage import run_scene
 from renderloop.scene.world import world_xml
@@ -115,7 +115,7 @@ def test_the_greenhouse_scan_keeps_the_planners_clearance_and_is_the_plain_scan(
     config = config_of("greenhouse", **LEAN)
     run_scene(tmp_path, config)
     run_plan(tmp_path, config)
-    scene = files.read_scene(tmp_path)
+    scene = read_scene(tmp_path)
     strings = [shape for obj in collision_objects(scene) if obj.name == "wires" for shape in obj.shapes]
     assert len(strings) >= len(scene.plants)
     world = (tmp_path / names.WORLD).read_text()
@@ -131,7 +131,7 @@ def test_renderloop_run_with_the_greenhouse_preset_completes(monkeypatch, capsys
     code, _, err = cli(monkeypatch, capsys, "run", "--preset", "greenhouse", "--config", str(tiny), "--out", str(tmp_path / "gh"))
     assert code == 0, err
     assert (tmp_path / "gh" / names.COUNTS).is_file() and (tmp_path / "gh" / "report.html").is_file()
-    assert files.read_scene(tmp_path / "gh").environment is not None
+    assert read_scene(tmp_path / "gh").environment is not None
     # its frames as a training set: the neighbouring rows' fruit labelled too, told apart by the depth frames
     from renderloop.dataset.build import image_name
     from renderloop.dataset.from_runs import dataset_from_runs

@@ -15,7 +15,7 @@ from rerun.error_utils import strict_mode
 from renderloop.export.rerun_recording import write_rerun
 from renderloop.io.tum import read_tum
 from renderloop.render.stage import run_render
-from renderloop.rundir.contents import read_run
+from renderloop.export.contents import read_run
 from renderloop.rundir.files import read_config
 from renderloop.scene.model import load_scene
 

@@ -15,8 +15,9 @@ from scipy.spatial.transform import Rotation
 from renderloop.export.command import export_run
 from renderloop.export.rosbag import LINKS, OPTICAL_FRAME
 from renderloop.perception.pointcloud import organised_cloud
+from renderloop.render.camera import read_camera_info
 from renderloop.render.frames import decode_depth, read_png
-from renderloop.rundir.files import read_camera_info, read_poses
+from renderloop.rundir.files import read_poses
 
 
 @pytest.fixture(scope="module")

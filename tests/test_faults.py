@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 import yaml
 
-from renderloop.rundir.ownership import read_ledger
+from renderloop.io.ownership import read_ledger
 
 FAST = {"renderer": {"backend": "raster"}, "camera": {"rate_hz": 0.25}}
 # Seconds of each stage, and the list of files renderloop wrote (a killed write may leave a name listed whose file

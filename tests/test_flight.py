@@ -9,8 +9,8 @@ from scipy.spatial.transform import Rotation
 
 from renderloop.io.csvtable import read_csv
 from renderloop.io.tum import read_tum
-from renderloop.planning.waypoints import scan_target
-from renderloop.rundir.files import FLIGHT_HEADER, read_waypoints
+from renderloop.planning.waypoints import read_waypoints, scan_target
+from renderloop.rundir.files import FLIGHT_HEADER
 from renderloop.scene.model import load_scene
 from renderloop.scene.world import world_xml
 from renderloop.sim.flight import Flight

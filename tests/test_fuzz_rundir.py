@@ -26,20 +26,24 @@ from hypothesis import strategies as st
 from pydantic import BaseModel
 
 from renderloop.errors import UserError
-from renderloop.rundir import contents, files, names
-from renderloop.rundir.ownership import LEDGER
+from renderloop.export import contents
+from renderloop.planning.waypoints import read_waypoints
+from renderloop.render.camera import read_camera_info
+from renderloop.rundir import files, names
+from renderloop.io.ownership import LEDGER
+from renderloop.scene.model import read_scene
 
 Reader = Callable[[Path], object]
 
 # Every file of a run that a verb parses, with its reader.
 READERS: dict[str, Reader] = {
-    names.SCENE: files.read_scene,
+    names.SCENE: read_scene,
     names.CONFIG: files.read_config,
-    names.WAYPOINTS: files.read_waypoints,
+    names.WAYPOINTS: read_waypoints,
     names.TRAJECTORY: files.read_trajectory,
     names.FLIGHT: files.read_flight,
     names.POSES: files.read_poses,
-    names.CAMERA_INFO: files.read_camera_info,
+    names.CAMERA_INFO: read_camera_info,
     names.frames_index(names.RGB): lambda run: files.read_frames_index(run, names.RGB),
     names.frames_index(names.DEPTH): lambda run: files.read_frames_index(run, names.DEPTH),
     names.DETECTIONS: lambda run: files.read_detections(run, len(files.read_poses(run)[0])),
@@ -48,7 +52,7 @@ READERS: dict[str, Reader] = {
     names.HARVEST: files.read_harvest,
     names.TIMINGS: files.read_timings,
 }
-# A verb that reads each (report reads most; the exporters read the plan through rundir.contents).
+# A verb that reads each (report reads most; the exporters read the plan through export.contents).
 VERBS: dict[str, tuple[str, ...]] = {
     **dict.fromkeys((names.SCENE, names.CONFIG, names.POSES, names.FLIGHT, names.CAMERA_INFO, names.DETECTIONS,
                      names.COUNTS, names.HARVEST), ("report", "{run}")),

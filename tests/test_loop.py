@@ -18,7 +18,8 @@ from renderloop.loop.reference import quintic_bridge
 from renderloop.loop.simulation import Simulation
 from renderloop.pipeline import run_pipeline
 from renderloop.rundir import files, names
-from renderloop.rundir.ownership import BOOKKEEPING
+from renderloop.io.ownership import BOOKKEEPING
+from renderloop.scene.model import read_scene
 from renderloop.sim.flight import Reference, fly
 
 
@@ -166,7 +167,7 @@ def test_an_online_run_writes_the_batch_runs_files_and_counts(complete_run: Path
 def test_the_online_counter_counts_what_the_batch_count_counts(complete_run: Path):
     config = files.read_config(complete_run)
     detections = files.read_detections(complete_run, len(files.read_poses(complete_run)[0]))
-    counter = OnlineCounter(files.read_scene(complete_run), config.counting, config.seed)
+    counter = OnlineCounter(read_scene(complete_run), config.counting, config.seed)
     for frame in reversed(detections.frames):  # arrival order does not matter: frames are counted in index order
         counter.add(frame)
     counted = counter.counts()
@@ -201,7 +202,8 @@ def test_online_cycles_sensor_frames_blurred_by_the_flown_motion_are_the_batch_r
     reads from flight.csv: the online camera's files are the batch render's, byte for byte."""
     from renderloop.render.motion import FlownStates, frames_motion
     from renderloop.render.stage import run_render
-    from renderloop.sim.stage import camera_frames, write_flight
+    from renderloop.sim.flight import camera_frames
+    from renderloop.sim.stage import write_flight
 
     config = load_config("demo").override({"camera": {"width": 64, "height": 48, "rate_hz": 0.1, "sensor": {"enabled": True}},
                                            "renderer": {"backend": "cycles", "samples": 1}})

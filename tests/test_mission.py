@@ -12,12 +12,14 @@ import yaml
 from conftest import cli, fly_demo_raster
 
 from renderloop.config import Config, IntervalConfig, deep_merge, load_config
-from renderloop.counting.stage import run_count, run_counting
+from renderloop.counting.stage import run_count
+from renderloop.counting.summary import run_counting
 from renderloop.loop.simulation import Simulation
 from renderloop.loop.viewpoints import View, camera_position
 from renderloop.pipeline import run_pipeline
 from renderloop.rundir import files, names
-from renderloop.rundir.ownership import BOOKKEEPING
+from renderloop.io.ownership import BOOKKEEPING
+from renderloop.scene.model import read_scene
 
 # Two plants on the demo table, raster frames, a first pass every 4 s and one round of two views: a mission in seconds
 # (and a static scan at 0.5 Hz beside it). A cautious prior on the unseen canopy keeps every plant open after the first
@@ -46,7 +48,7 @@ def _contract(run_dir: Path) -> dict[str, bytes]:
 
 def test_the_mission_looks_again_at_uncertain_plants_from_the_views_it_logs(adaptive_run: Path):
     mission = files.read_mission(adaptive_run)
-    scene = files.read_scene(adaptive_run)
+    scene = read_scene(adaptive_run)
     times, poses = files.read_poses(adaptive_run)
     counts = files.read_counts(adaptive_run)
     views = [(plant, view) for plant in mission.plants for r in plant.rounds for view in r.views]

@@ -9,7 +9,7 @@ import pytest
 from conftest import cli
 
 from renderloop.errors import UserError
-from renderloop.rundir import ownership
+from renderloop.io import ownership
 from renderloop.rundir.names import frame_file
 
 

@@ -11,17 +11,17 @@ from renderloop.config import PlannerConfig, load_config
 from renderloop.errors import UserError
 from renderloop.io.csvtable import read_csv
 from renderloop.planning.check import check_trajectory
-from renderloop.planning.trajectory import HEADER, time_parameterize
-from renderloop.planning.waypoints import plan_waypoints, scan_target
+from renderloop.planning.trajectory import time_parameterize
+from renderloop.rundir.files import TRAJECTORY_HEADER
+from renderloop.planning.waypoints import plan_waypoints, read_waypoints, scan_target
 from renderloop.robot.kinematics import dofs_to_camera_pose, planned_camera_positions
-from renderloop.rundir.files import read_waypoints
 from renderloop.scene.world import world_xml
 
 
 @pytest.fixture(scope="module")
 def trajectory(paper_run):
     config, run_dir = paper_run
-    table = read_csv(run_dir / "trajectory.csv", HEADER)
+    table = read_csv(run_dir / "trajectory.csv", TRAJECTORY_HEADER)
     return config, table, read_waypoints(run_dir)
 
 
@@ -30,7 +30,7 @@ def test_trajectory_header_and_rate(paper_run):
     assert (run_dir / "trajectory.csv").read_text().splitlines()[0] == (
         "t,x,y,z,yaw,q1,q2,q3,dx,dy,dz,dyaw,dq1,dq2,dq3,ddx,ddy,ddz,ddyaw,ddq1,ddq2,ddq3"
     )
-    table = read_csv(run_dir / "trajectory.csv", HEADER)
+    table = read_csv(run_dir / "trajectory.csv", TRAJECTORY_HEADER)
     assert np.allclose(np.diff(table[:, 0]), 0.01)
 
 

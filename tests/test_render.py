@@ -15,12 +15,12 @@ from conftest import fly_demo_raster
 from renderloop.config import load_config
 from renderloop.errors import UserError
 from renderloop.parallel import Executor
-from renderloop.render.camera import Intrinsics, to_gl_camera
+from renderloop.render.camera import Intrinsics, read_camera_info, to_gl_camera
 from renderloop.render.frames import read_frame
 from renderloop.render.raster import RasterRenderer
 from renderloop.render.stage import run_render, with_backend
 from renderloop.robot.kinematics import camera_rotation, homogeneous, look_at
-from renderloop.rundir.files import read_camera_info, read_config, read_poses
+from renderloop.rundir.files import read_config, read_poses
 
 
 def wall_depth(intrinsics: Intrinsics, pose: np.ndarray, wall_x: float) -> np.ndarray:

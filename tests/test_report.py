@@ -20,10 +20,12 @@ import yaml
 from PIL import Image
 
 from conftest import cli
+from renderloop.render.camera import read_camera_info
 from renderloop.report.html import build_report, write_report
 from renderloop.report.view3d import greenhouse_figure
 from renderloop.report.words import signed_pct
 from renderloop.rundir import files
+from renderloop.scene.model import read_scene
 
 CHROMIUM = Path("/usr/bin/chromium")
 LAUNCH_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
@@ -112,7 +114,7 @@ def test_the_report_opens_offline_without_errors_and_draws_the_3d_view(opened: O
 
 
 def test_the_3d_view_draws_the_ripe_fruit_seen_once_that_the_estimate_credits(complete_run: Path):
-    scene = files.read_scene(complete_run)
+    scene = read_scene(complete_run)
     times, poses = files.read_poses(complete_run)
     counts = files.read_counts(complete_run)
     once = (0.1, -0.2, 0.5)
@@ -120,7 +122,7 @@ def test_the_3d_view_draws_the_ripe_fruit_seen_once_that_the_estimate_credits(co
 
     def names_and_points(counted) -> dict:
         figure = greenhouse_figure(scene, counted, files.read_detections(complete_run, len(poses)),
-                                   files.read_flight(complete_run), times, poses, files.read_camera_info(complete_run))
+                                   files.read_flight(complete_run), times, poses, read_camera_info(complete_run))
         return {trace.name: list(zip(trace.x, trace.y, trace.z)) for trace in figure.data if trace.name}
 
     drawn = names_and_points(counts.model_copy(update={"plants": plants}))

@@ -196,11 +196,11 @@ def _reachable(schema: dict[str, Any], defs: dict[str, Any]) -> list[str]:
 # CSV files ---------------------------------------------------------------------------------------------------------
 
 def csv_columns() -> str:
-    from renderloop.planning.trajectory import HEADER as TRAJECTORY
+    from renderloop.planning.waypoints import WAYPOINT_HEADER
     from renderloop.rundir import files, names
 
     rows = []
-    for file_name, header in ((names.WAYPOINTS, files.WAYPOINT_HEADER), (names.TRAJECTORY, TRAJECTORY),
+    for file_name, header in ((names.WAYPOINTS, WAYPOINT_HEADER), (names.TRAJECTORY, files.TRAJECTORY_HEADER),
                               (names.FLIGHT, files.FLIGHT_HEADER)):
         rows.append(f"- `{file_name}` ({len(header)} columns): `{','.join(header)}`")
     return "\n".join(rows)

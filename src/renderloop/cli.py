@@ -28,7 +28,7 @@ from renderloop.errors import UserError
 from renderloop.io.atomic import final_path
 
 # Each command imports the stages it runs inside its own body: `renderloop fly` has no use for the detector,
-# scikit-learn or Ray, and importing every stage up front made a quarter of its time.
+# scikit-learn or Ray, and importing them would be a large part of its time.
 
 app = typer.Typer(
     name="renderloop",

@@ -69,7 +69,7 @@ Bounces = Count(0, 1024)
 
 class BouncesConfig(Strict):
     """Cycles' light-path limits, for a user trading light transport against time. Samples, not
-    bounces, are what a frame costs: 3/1/1/2/2 instead of these saved 6 % at 4 samples on the paper scene."""
+    bounces, are what a frame costs: shorter light paths save little time (docs/stages/render.md)."""
 
     total: Bounces = Field(6, description="Most bounces of a light path.")
     diffuse: Bounces = Field(3, description="Most diffuse bounces.")
@@ -88,12 +88,12 @@ class RasterConfig(Strict):
 
 class RendererConfig(Strict):
     backend: Literal["cycles", "raster"] = Field("cycles", description="'cycles': Blender's path tracer; 'raster': MuJoCo's OpenGL renderer, milliseconds a frame, for tests and previews.")
-    # Denoised, one sample is all the detector needs, at a thirtieth of 128's cost (docs/stages/render.md, quality).
+    # Denoised, one sample is all the detector needs, at a small fraction of the cost of many (docs/stages/render.md).
     samples: Count(1, 65536) = Field(1, description="Cycles path-tracing samples per pixel.")
     adaptive_threshold: Fraction = Field(0.05, description="Cycles adaptive sampling noise threshold; 0 turns adaptive sampling off.")
     denoise: bool = Field(True, description="Denoise each frame with OpenImageDenoise.")
     denoise_quality: Literal["fast", "balanced", "high"] = Field(
-        "fast", description="OpenImageDenoise effort; 'high' (accurate prefilter) costs about 3 s more per 640x480 frame on 2 cores."
+        "fast", description="OpenImageDenoise effort; 'high' (accurate prefilter) costs seconds more per frame on a CPU."
     )
     bounces: BouncesConfig = Field(BouncesConfig(), description="Cycles' light-path bounce limits.")
     persistent_data: bool = Field(True, description="Keep Blender's scene data between frames.")

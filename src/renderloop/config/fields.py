@@ -33,12 +33,17 @@ Position2 = tuple[Coordinate, Coordinate]
 Gain = Real(0.0, 1e5)
 
 MAX_ROOM_SIDE = 200.0  # m
+# The room's centre is the origin. No room side is longer than MAX_ROOM_SIDE and the film greenhouse
+# reaches at most 50 m (`extent`) beyond it, under gutters at most 20 m high: every point of a scene the config
+# makes lies within 150 m of the origin. 1000 m leaves room for a hand-built scene and still stops a unit slip
+# or an overflow long before physics or rendering meets it; the run's tables (trajectory, flight, poses) share it.
+WORLD_BOUND = 1000.0  # m
 # The planner routes on a 5 cm occupancy grid of the whole floor: one hectare is 4 M cells, about 2 GB and
 # seconds a transit; a larger floor would exhaust memory before it flew.
 MAX_FLOOR_AREA = 10_000.0  # m²
 MAX_TABLES = 500
 MAX_PLANTS_PER_TABLE = 200
-# Growing a plant takes about 60 ms (paper scene: 32 plants in 1.8 s): 5000 plants are minutes of scene
+# Growing a plant takes tens of milliseconds: 5000 plants are minutes of scene
 # generation, and as many ellipses for the planner, the simulation and the renderer.
 MAX_PLANTS = 5000
 MAX_LEAVES_PER_PLANT = 2000

@@ -9,15 +9,23 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, model_validator
 
 from renderloop.config.fields import Count, Fraction, Real, Strict
-from renderloop.perception.tiling import LAYOUT_PATTERN, Layout, layout
+
+Layout = tuple[int, int]  # a window layout (perception/tiling.py): columns, rows
+LAYOUT_PATTERN = r"[1-8]x[1-8]"
+
+
+def layout(text: str) -> Layout:
+    columns, rows = text.split("x")
+    return int(columns), int(rows)
 
 
 class DetectorConfig(Strict):
     model: Path | None = Field(None, description="ONNX model; null means the one shipped in the package.")
     input_size: Count(64, 2048) = Field(320, description="Side of the square network input, px.")
     score_threshold: Fraction = Field(0.68, description="Score a detection needs. Fused scores run higher than one "
-                                      "pass's: 0.68 gave at most 5 % false detections on held-out paper runs "
-                                      "(docs/stages/perception.md).")
+                                      "pass's; the default is the lowest at which at most 5 % of the shipped model's "
+                                      "detections on held-out paper runs are false, with the default windows and "
+                                      "mirror (`renderloop threshold`, docs/stages/perception.md).")
     windows: tuple[Annotated[str, Field(pattern=f"^{LAYOUT_PATTERN}$")], ...] = Field(
         ("2x2", "3x2"), max_length=64,  # the 8 x 8 possible layouts
         description="Also search the overlapping windows of these columns x rows layouts of each frame, "
@@ -65,7 +73,7 @@ class IntervalConfig(Strict):
     hidden_unseen: Real(0.0, 1000.0) = Field(
         0.0, description="Expected hidden ripe fruit of a plant whose canopy box no depth frame has seen, scaled by the "
         "unseen fraction (from an adaptive mission's voxel maps; a batch count has none). Fitted on the mission's first "
-        "decisions (benchmarks/intervals.py --first-pass): on the demo the unseen canopy hid no fruit.")
+        "decisions (benchmarks/intervals.py --first-pass; docs/stages/counting.md).")
 
 
 class CountingConfig(Strict):

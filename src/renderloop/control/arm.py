@@ -3,7 +3,7 @@
 The PID sets a joint acceleration (the trajectory's plus the feedback); the mass
 matrix and the bias forces of the model turn it into torques, so one set of gains
 fits all three joints although their loads differ tenfold. The arithmetic is
-compiled (control.kernel.arm_torques).
+compiled (robot.kernel.arm_torques).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from renderloop.control.pid import PID, floats3
 
 class ArmController:
     def __init__(self, config: ControllerConfig, max_torque: float):
-        from renderloop.control import kernel  # numba loads with the first controller, not with the package
+        from renderloop.robot import kernel  # numba loads with the first controller, not with the package
 
         self.pid = PID([config.joints] * 3, 1.0 / config.rate_hz, integral_limit=5.0)
         self.max_torque = float(max_torque)

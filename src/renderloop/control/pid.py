@@ -2,7 +2,7 @@
 
 The components of one loop level (x, y, z of velocity; roll, pitch, yaw rates; the
 three joints) share one PID object. Its gains and state are small arrays, and the
-update is compiled (control.kernel), where Flight's control tick runs it too.
+update is compiled (robot.kernel), where Flight's control tick runs it too.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ def floats3(values: Sequence[float]) -> tuple[float, float, float]:
 class PID:
     def __init__(self, gains: Sequence[Gains], dt: float, integral_limit: float = np.inf, scale: Sequence[float] | None = None):
         """One Gains per component; `scale` multiplies every gain of a component (unit conversions)."""
-        from renderloop.control import kernel  # numba loads with the first controller, not with the package
+        from renderloop.robot import kernel  # numba loads with the first controller, not with the package
 
         if len(gains) != 3:
             raise ValueError(f"a PID has 3 components, got {len(gains)} gains")

@@ -50,10 +50,10 @@ class RigidBodyTerms:
 
 
 class UavController:
-    """Gains, constants and loop states in arrays; the cascade itself is compiled (control.kernel.uav_wrench)."""
+    """Gains, constants and loop states in arrays; the cascade itself is compiled (robot.kernel.uav_wrench)."""
 
     def __init__(self, config: ControllerConfig, total_mass: float, rotors: RotorModel):
-        from renderloop.control import kernel  # numba loads with the first controller, not with the package
+        from renderloop.robot import kernel  # numba loads with the first controller, not with the package
 
         dt = 1.0 / config.rate_hz
         self.config = config

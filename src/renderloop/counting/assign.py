@@ -69,11 +69,11 @@ def lof_inliers(points: np.ndarray, n_neighbors: int) -> np.ndarray:
     """True for the points LocalOutlierFactor keeps; rows of fewer than 3 points are kept whole,
     since a local density needs neighbours to compare with.
 
-    `n_neighbors` must stay below the fewest detections of a fruit that should count:
-    with scikit-learn's default of 20, whole fruit seen 5-20 times were scored outliers
-    (about half the plants of the synthetic paper scenario counted exactly, against all
-    of them at 3 or 4). LOF also drops a few percent of the tail points of real fruit,
-    which does not change the count.
+    `n_neighbors` must stay below the fewest detections of a fruit that should count: with
+    more neighbours than a fruit has detections, LOF compares the fruit's points with points
+    of other fruit and scores a whole fruit seen a few times an outlier (scikit-learn's
+    default of 20 does). LOF also drops some tail points of real fruit, which does not
+    change the count.
     """
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     if len(points) < 3:

@@ -30,12 +30,12 @@ from renderloop.dataset.picked import picked_fruit
 from renderloop.dataset.scenes import DATASET_SENSOR, FORMAT_VERSION, PICKED_VIEWS, DatasetSpec, dataset_scene
 from renderloop.dataset.views import close_view, picked_view, random_view
 from renderloop.errors import UserError
+from renderloop.io import ownership
 from renderloop.io.atomic import write_bytes, write_json
 from renderloop.parallel import LOCAL, Executor, map_tasks
 from renderloop.render.camera import Intrinsics
 from renderloop.render.executor import COLOUR_SENSOR_STREAM
 from renderloop.render.sensor import sensor_rgb
-from renderloop.rundir import ownership
 from renderloop.scene.objects import greenhouse_objects, neighbour_fruit
 from renderloop.scene.plant_meshes import pepper_mesh
 

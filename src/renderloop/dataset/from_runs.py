@@ -28,9 +28,12 @@ from renderloop.dataset.coco import write_coco
 from renderloop.dataset.labels import MIN_SIDE, neighbour_fruit_boxes, pepper_boxes, pepper_vertices
 from renderloop.dataset.preview import draw_preview
 from renderloop.errors import UserError
+from renderloop.io import ownership
 from renderloop.io.atomic import write_bytes, write_json
+from renderloop.render.camera import read_camera_info
 from renderloop.render.frames import decode_depth, read_png
-from renderloop.rundir import files, names, ownership
+from renderloop.rundir import files, names
+from renderloop.scene.model import read_scene
 from renderloop.scene.objects import neighbour_fruit
 
 NEEDS = (names.CONFIG, names.SCENE, names.POSES, names.CAMERA_INFO)
@@ -54,9 +57,9 @@ def _frames(run_dir: Path, every: int) -> tuple[np.ndarray, list[int]]:
 
 def _run_records(run_dir: Path, poses: np.ndarray, indices: list[int], first: int, split: str, out: Path) -> list[dict]:
     """Write the run's chosen frames as JPEG images and label files; their records in order."""
-    scene = files.read_scene(run_dir)
+    scene = read_scene(run_dir)
     near = files.read_config(run_dir).camera.clip[0]
-    intrinsics = files.read_camera_info(run_dir)
+    intrinsics = read_camera_info(run_dir)
     peppers = {pepper.id: pepper for pepper in scene.peppers}
     meshes, neighbours = pepper_vertices(scene), neighbour_fruit(scene.environment)
     min_side = MIN_SIDE * intrinsics.width / LABEL_WIDTH

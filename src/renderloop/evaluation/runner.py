@@ -17,9 +17,10 @@ from rich.console import Console
 
 from renderloop.config import Config
 from renderloop.evaluation.table import EVAL_CSV, EVAL_JSON, Scenario, scenario
+from renderloop.io import ownership
 from renderloop.parallel import LOCAL, Executor, map_tasks
 from renderloop.pipeline import check_inputs, run_pipeline
-from renderloop.rundir import files, ownership
+from renderloop.rundir import files
 from renderloop.rundir.stage import claim
 
 Progress = Callable[[int, int], None]

@@ -6,8 +6,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from renderloop.errors import UserError
-from renderloop.rundir import ownership
-from renderloop.rundir.contents import read_run
+from renderloop.export.contents import read_run
+from renderloop.io import ownership
 
 
 def _check_target(path: Path, force: bool, suffix: str | None = None) -> None:

@@ -22,7 +22,7 @@ from renderloop.perception.pointcloud import organised_cloud
 from renderloop.render.camera import Intrinsics
 from renderloop.render.frames import DEPTH_SCALE, decode_depth, read_png
 from renderloop.robot.kinematics import planned_camera_positions
-from renderloop.rundir.contents import Frame, RunContents
+from renderloop.export.contents import Frame, RunContents
 from renderloop.rundir.models import Counts, Detection
 from renderloop.scene.model import Scene
 

@@ -27,12 +27,12 @@ from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlu
 from scipy.spatial.transform import Rotation
 
 from renderloop.export.ros_messages import RosMessages
+from renderloop.io import ownership
 from renderloop.io.atomic import atomic_directory
 from renderloop.perception.pointcloud import organised_cloud
 from renderloop.render.frames import decode_depth, read_png
 from renderloop.robot.kinematics import arm_frames, homogeneous
-from renderloop.rundir import ownership
-from renderloop.rundir.contents import RunContents
+from renderloop.export.contents import RunContents
 
 OPTICAL_FRAME = "camera_optical_frame"
 LINKS = ("base_link", "arm_link1", "arm_link2", "arm_link3")
@@ -51,7 +51,6 @@ TOPICS = {
 }
 LATCHED = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL, QosTime(0, 0),
               QosTime(0, 0), QosLiveliness.AUTOMATIC, QosTime(0, 0), False)
-RIPE_COLOUR, UNRIPE_COLOUR = (0.9, 0.1, 0.1, 1.0), (0.2, 0.7, 0.2, 1.0)
 
 Message = tuple[str, object]  # topic, message
 Event = tuple[int, int, Callable[[], list[Message]]]  # stamp in ns, order among equal stamps, builder

@@ -28,7 +28,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from renderloop.rundir import ownership
+from renderloop.io import ownership
 
 TEMP_SUFFIX = ".partial"
 # The machine in each temporary name: a process id says whether its writer still lives only on the machine it ran on.

@@ -23,7 +23,7 @@ import numpy as np
 from renderloop.config import Config, CountingConfig
 from renderloop.counting.harvest import plan_harvest
 from renderloop.counting.online import OnlineCounter
-from renderloop.counting.stage import run_counting
+from renderloop.counting.summary import run_counting
 from renderloop.counting.uncertainty import PlantUncertainty, Uncertainty
 from renderloop.errors import UserError
 from renderloop.loop.nbv import (
@@ -39,9 +39,9 @@ from renderloop.loop.viewpoints import Projector, view_at
 from renderloop.loop.voxels import VoxelMap
 from renderloop.planning.check import Clash
 from renderloop.planning.transit import TransitPlanner
-from renderloop.planning.waypoints import Waypoint, footprint_radius, transit
+from renderloop.planning.waypoints import Waypoint, footprint_radius, read_waypoints, transit
 from renderloop.render.camera import Intrinsics
-from renderloop.rundir import files, names
+from renderloop.rundir import names
 from renderloop.rundir.models import (
     Estimate,
     HarvestUpdate,
@@ -81,7 +81,7 @@ class AdaptiveMission:
         self.settings = config.mission.adaptive
         self.intrinsics = Intrinsics.from_config(config.camera)
         self.scene = sim.scene
-        self.static = files.read_waypoints(sim.run_dir)
+        self.static = read_waypoints(sim.run_dir)
         self.passes = {index: waypoint.time for index, waypoint in enumerate(self.static)}  # static index -> passed at
         self.router = TransitPlanner(self.scene, footprint_radius(config))
         self.maps = {plant.id: VoxelMap(canopy_box(plant)[0] - MAP_MARGIN, canopy_box(plant)[1] + MAP_MARGIN,

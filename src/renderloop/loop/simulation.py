@@ -32,10 +32,11 @@ from renderloop.loop.sensors import Camera
 from renderloop.parallel import Executor
 from renderloop.planning.check import Clash, check_trajectory
 from renderloop.planning.trajectory import Trajectory
+from renderloop.planning.waypoints import read_waypoints
 from renderloop.render.stage import with_backend
 from renderloop.robot.kinematics import homogeneous
 from renderloop.rundir import files, names
-from renderloop.scene.model import Scene
+from renderloop.scene.model import Scene, read_scene
 from renderloop.scene.stage import run_scene
 from renderloop.sim.flight import Flight, FlightLog, FlightRecorder, Reference
 
@@ -74,7 +75,7 @@ class Simulation:
         hold = checked(SimulationSettings, "Simulation", hold=hold).hold
         self.config, self.run_dir, self.hold = config, Path(run_dir), hold
         run_scene(self.run_dir, config)  # skipped when the run directory already holds this config's scene
-        self.scene: Scene = files.read_scene(self.run_dir)
+        self.scene: Scene = read_scene(self.run_dir)
         self.model = mujoco.MjModel.from_xml_path(str(self.run_dir / names.WORLD))
         self.flight = Flight(self.model, config, config.seed)
         self.rate_hz = config.controller.rate_hz
@@ -91,7 +92,7 @@ class Simulation:
 
         run_plan(self.run_dir, self.config)
         table = files.read_trajectory(self.run_dir)
-        times = np.array([w.time for w in files.read_waypoints(self.run_dir)])
+        times = np.array([w.time for w in read_waypoints(self.run_dir)])
         return Trajectory(table[:, 0], table[:, 1:8], table[:, 8:15], table[:, 15:22], times)
 
     def follow(self, trajectory: Trajectory | Reference) -> None:

@@ -23,7 +23,8 @@ from renderloop.loop.mission import AdaptiveMission
 from renderloop.loop.sensors import Frame
 from renderloop.loop.simulation import Simulation
 from renderloop.perception.detector import Detector
-from renderloop.perception.stage import find_fruit, write_detections
+from renderloop.perception.fruit_points import find_fruit
+from renderloop.perception.stage import write_detections
 from renderloop.render.camera import Intrinsics
 from renderloop.render.frames import write_frame
 from renderloop.render.stage import clear_frames, finish_render, render_record

@@ -8,7 +8,7 @@ looks like the 320 px renders the network was trained on) and boxes are scaled b
 With window `layouts` the frame's overlapping windows are searched as well (`tiling`), with
 `mirror` the frame mirrored left to right (a second look at the same pixels that errs
 elsewhere: the network is not exactly symmetric), and what the passes found is merged
-(`fusion`). The windows are not mirrored: four more passes that found no more fruit at the
+(`fusion`). The windows are not mirrored: that costs a pass a window and finds no more fruit at the
 same rate of false detections (docs/stages/perception.md).
 """
 
@@ -58,7 +58,7 @@ def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, 
 
     Boxes under `score_threshold` are dropped before NMS, not after: a box is only ever
     suppressed by a higher-scoring one, so the detections above the threshold are the
-    same, and NMS then runs over tens of boxes instead of 600 (20 ms saved per frame)."""
+    same, and NMS then runs over tens of boxes instead of hundreds."""
     boxes, scores = boxes.astype(np.float32), scores.astype(np.float32)
     candidates = []
     for label in range(1, scores.shape[1]):

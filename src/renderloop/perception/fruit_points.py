@@ -4,8 +4,8 @@ A box around a pepper also holds leaves in front of it and whatever lies behind 
 but the detected fruit is what its box is mostly about: of all depth windows as deep
 as a pepper's visible skin, the one holding most of the points in the box's central
 part is the fruit (the nearest such window on ties). The centroid of the points in
-it is returned: a point on the visible skin, as in the reference work. (Taking the
-nearest surface instead put 16 % of the points on a leaf in front of the fruit.)
+it is returned: a point on the visible skin, as in the reference work. The nearest
+surface would often be a leaf in front of the fruit (docs/stages/perception.md).
 
 That centroid lies in front of the fruit's centre: pixels sample the visible half of a
 roughly round fruit evenly in projection, so their mean depth is two thirds of a radius
@@ -24,7 +24,17 @@ boxes use depth alone.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+from renderloop.perception.pointcloud import organised_cloud, to_world
+from renderloop.rundir.models import Detection
+
+if TYPE_CHECKING:
+    from renderloop.config import DetectorConfig
+    from renderloop.perception.detector import Detector
+    from renderloop.render.camera import Intrinsics
 
 FRUIT_DEPTH = 0.06  # m of depth a pepper's visible skin spans
 CENTRAL = 0.6  # fraction of the box's width and height taken as its centre
@@ -32,7 +42,7 @@ MIN_POINTS = 5
 BIN = 0.01  # m, depth histogram resolution
 CENTRE_BEHIND_SKIN = 2 / 3  # radii: the mean depth of a sphere's visible half, area-weighted in projection
 MAX_RADIUS = 0.05  # m: sweet peppers are at most 10 cm wide; a wide box on something else moves no further
-RIPE_CHROMA = 20  # 8-bit red minus blue: most of a red fruit's pixels (median 89 % in the demo run), 0.1 % of the rest
+RIPE_CHROMA = 20  # 8-bit red minus blue: most of a red fruit's pixels pass, almost none of the rest (docs/stages/perception.md)
 
 
 def ripe_coloured(rgb: np.ndarray) -> np.ndarray:
@@ -71,3 +81,16 @@ def fruit_point(cloud: np.ndarray, box: tuple[float, float, float, float], fx: f
     skin = points[keep].mean(axis=0)
     radius = min(0.5 * (x1 - x0) * skin[2] / fx, MAX_RADIUS)
     return skin + CENTRE_BEHIND_SKIN * radius * skin / np.linalg.norm(skin)
+
+
+def find_fruit(detector: Detector, rgb: np.ndarray, depth: np.ndarray, pose: np.ndarray, settings: DetectorConfig,
+               intrinsics: Intrinsics) -> list[Detection]:
+    """The detector's boxes on one frame, each with its fruit point in the world (None without depth returns)."""
+    cloud, ripe_pixels = organised_cloud(depth, intrinsics), ripe_coloured(rgb)
+    detections = []
+    for found in detector.detect(rgb, settings.score_threshold, settings.layouts, settings.mirror):
+        point = fruit_point(cloud, found.bbox, intrinsics.fx, ripe_pixels if found.label == "ripe" else None)
+        world = None if point is None else tuple(round(float(v), 5) for v in to_world(point, pose))
+        box = found.to_json()
+        detections.append(Detection(bbox=tuple(box["bbox"]), score=box["score"], label=box["label"], position=world))
+    return detections

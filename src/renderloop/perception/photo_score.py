@@ -36,13 +36,13 @@ from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveInt, Val
 
 from renderloop.config import DetectorConfig
 from renderloop.errors import UserError, problem
+from renderloop.io import ownership
 from renderloop.io.atomic import write_json
 from renderloop.io.images import check_image, read_image
 from renderloop.perception.boxes import box_iou
 from renderloop.perception.detector import CLASSES, PASS_FLOOR, Detection, Detector
 from renderloop.perception.threshold import THRESHOLDS
 from renderloop.perception.tiling import layout_names
-from renderloop.rundir import ownership
 
 MATCH_IOU = 0.5
 EDGE_TOLERANCE = 0.5  # px: a labelled box may pass its image's edge by this much (rounding); it is clipped to the image

@@ -11,8 +11,8 @@ from renderloop.io.atomic import atomic_path
 from renderloop.perception.scoring import FrameTruth, findable
 from renderloop.render.frames import read_png
 from renderloop.rundir import names
-from renderloop.rundir.files import read_scene
 from renderloop.rundir.models import DetectionFrame
+from renderloop.scene.model import read_scene
 
 ROWS = 6
 COLORS = {"ripe": (255, 40, 40), "unripe": (0, 220, 255)}

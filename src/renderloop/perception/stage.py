@@ -20,16 +20,17 @@ from pydantic import BaseModel, ValidationError
 
 from renderloop.config import Config, DetectorConfig
 from renderloop.errors import UserError
+from renderloop.io import ownership
 from renderloop.perception.detector import Detector
-from renderloop.perception.fruit_points import fruit_point, ripe_coloured
-from renderloop.perception.pointcloud import organised_cloud, to_world
+from renderloop.perception.fruit_points import find_fruit
 from renderloop.perception.scoring import RunScore
 from renderloop.perception.sheet import draw_detection_sheet
-from renderloop.render.camera import Intrinsics
+from renderloop.render.camera import Intrinsics, read_camera_info
 from renderloop.render.frames import decode_depth, read_png, sensor_depth_dir, sensor_rgb_dir
-from renderloop.rundir import files, names, ownership
-from renderloop.rundir.models import Detection, DetectionFrame, Detections, DetectionScores
+from renderloop.rundir import files, names
+from renderloop.rundir.models import DetectionFrame, Detections, DetectionScores
 from renderloop.rundir.stage import Job, Stage
+from renderloop.scene.model import read_scene
 
 NEEDS = (names.CONFIG, names.SCENE, names.POSES, names.frames_index(names.RGB), names.frames_index(names.DEPTH), names.CAMERA_INFO)
 
@@ -64,19 +65,6 @@ def read_rgb_frame(run_dir: Path, index: int) -> np.ndarray:
     return rgb
 
 
-def find_fruit(detector: Detector, rgb: np.ndarray, depth: np.ndarray, pose: np.ndarray, settings: DetectorConfig,
-               intrinsics: Intrinsics) -> list[Detection]:
-    """The detector's boxes on one frame, each with its fruit point in the world (None without depth returns)."""
-    cloud, ripe_pixels = organised_cloud(depth, intrinsics), ripe_coloured(rgb)
-    detections = []
-    for found in detector.detect(rgb, settings.score_threshold, settings.layouts, settings.mirror):
-        point = fruit_point(cloud, found.bbox, intrinsics.fx, ripe_pixels if found.label == "ripe" else None)
-        world = None if point is None else tuple(round(float(v), 5) for v in to_world(point, pose))
-        box = found.to_json()
-        detections.append(Detection(bbox=tuple(box["bbox"]), score=box["score"], label=box["label"], position=world))
-    return detections
-
-
 def detect_frame(detector: Detector, run_dir: Path, index: int, timestamp: float, pose: np.ndarray,
                  depth_dir: str, settings: DetectorConfig, intrinsics: Intrinsics) -> DetectionFrame:
     rgb = read_rgb_frame(run_dir, index)
@@ -94,7 +82,7 @@ def _detect(run_dir: Path, config: Config, job: Job) -> None:
     settings = config.detector
     detector = Detector(settings.model)
     times, poses = files.read_poses(run_dir)
-    intrinsics = files.read_camera_info(run_dir)
+    intrinsics = read_camera_info(run_dir)
     depth_dir = sensor_depth_dir(run_dir)
     cache = run_dir / names.DETECT_CACHE
     key = f"{detector.path}@{settings.score_threshold}@{','.join(settings.windows)}@{settings.mirror}@{depth_dir}@{sensor_rgb_dir(run_dir)}"
@@ -131,7 +119,7 @@ run_detect = STAGE.run
 
 
 def score_run(run_dir: Path, frames: list[DetectionFrame]) -> DetectionScores:
-    score = RunScore.of_scene(files.read_scene(run_dir))
+    score = RunScore.of_scene(read_scene(run_dir))
     for frame in frames:
         score.add([d.model_dump() for d in frame.detections], read_png(run_dir / names.frame_file(names.MASKS, frame.index), np.uint16))
     return DetectionScores(**score.summary())

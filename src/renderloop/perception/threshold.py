@@ -6,9 +6,8 @@ passes search a frame, so a new model, other windows or the mirror turned off ea
 threshold chosen again. Every frame is searched once, keeping its fused boxes down to
 PASS_FLOOR; a higher threshold only drops boxes, so each candidate is scored on exactly the
 detections `renderloop detect --threshold t` would give, against the masks. The rule serves
-the detection goal; counting can want fewer false boxes than it allows (on the demo's
-frames it chose 0.21 for an earlier model, where counts were worse than at its default:
-docs/stages/perception.md).
+the detection goal; counting can want fewer false boxes than it allows, so check the counts
+at a threshold it chooses (docs/stages/perception.md).
 """
 
 from __future__ import annotations
@@ -26,9 +25,9 @@ from renderloop.perception.stage import NEEDS as DETECT_NEEDS
 from renderloop.perception.stage import read_rgb_frame
 from renderloop.render.frames import read_png
 from renderloop.rundir import files, names
-from renderloop.scene.model import Scene
+from renderloop.scene.model import Scene, read_scene
 
-THRESHOLDS = tuple(round(t, 2) for t in np.arange(PASS_FLOOR, 0.96, 0.01))  # below the floor, fused boxes were not kept
+THRESHOLDS = tuple(round(t, 2) for t in np.arange(PASS_FLOOR, 0.96, 0.01))  # below the floor, the search keeps no fused box
 
 Progress = Callable[[int, int], None]
 
@@ -62,7 +61,7 @@ def search_run(run_dir: Path, detector: Detector, settings: DetectorConfig, prog
     the search chooses), and the frame's truth."""
     run_dir = Path(run_dir)
     files.require(run_dir, DETECT_NEEDS)
-    scene = files.read_scene(run_dir)
+    scene = read_scene(run_dir)
     frames = []
     count = len(files.read_poses(run_dir)[0])
     for index in range(count):

@@ -22,16 +22,15 @@ import math
 import re
 from collections.abc import Sequence
 
+from renderloop.config.perception import LAYOUT_PATTERN, Layout, layout
 from renderloop.errors import UserError
 
 Box = tuple[float, float, float, float]
 Window = tuple[int, int, int, int]
-Layout = tuple[int, int]  # columns, rows
 
 OVERLAP = 0.1  # a window is (1 + OVERLAP) / columns of the frame's width (rows: height): neighbours share a strip
 EDGE = 2.0  # px: a box this close to a window's inner edge was cut by it
 MAX_ENLARGEMENT = 1.5
-LAYOUT_PATTERN = r"[1-8]x[1-8]"
 
 
 def parse_layouts(text: str) -> list[Layout]:
@@ -42,11 +41,6 @@ def parse_layouts(text: str) -> list[Layout]:
     if not all(re.fullmatch(LAYOUT_PATTERN, item) for item in items):
         raise UserError(f"--windows {text}: give columns x rows layouts from 1x1 to 8x8, comma-separated (e.g. 2x2,3x2), or none")
     return [layout(item) for item in items]
-
-
-def layout(text: str) -> Layout:
-    columns, rows = text.split("x")
-    return int(columns), int(rows)
 
 
 def layout_names(layouts: Sequence[Layout]) -> list[str]:

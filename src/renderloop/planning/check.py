@@ -11,8 +11,8 @@ import mujoco
 import numpy as np
 
 from renderloop.errors import UserError
+from renderloop.robot.kinematics import yaw_quaternion_wxyz
 from renderloop.robot.mjcf import JOINT_NAMES
-from renderloop.sim.flight import yaw_quaternion_wxyz
 
 CLEARANCE = 0.03  # m
 CHECK_PERIOD = 0.1  # s between checked samples

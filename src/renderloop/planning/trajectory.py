@@ -6,7 +6,7 @@ and ParametrizeConstAccel turns it into a trajectory that keeps them (the spline
 parametrizer can overshoot). Yaw is unwrapped first so that a turn across ±π is a
 small turn, not a 2π spin. TOPP-RA's limits are the configured ones times
 `limit_margin`: sampled at 100 Hz, constant-acceleration segments can overshoot a
-limit by about 1.6 %.
+limit slightly (docs/stages/plan.md).
 """
 
 from __future__ import annotations
@@ -19,8 +19,6 @@ import numpy as np
 from renderloop.config import PlannerConfig
 from renderloop.errors import UserError
 
-DOF_NAMES = ("x", "y", "z", "yaw", "q1", "q2", "q3")
-HEADER = ["t", *DOF_NAMES, *(f"d{n}" for n in DOF_NAMES), *(f"dd{n}" for n in DOF_NAMES)]
 ANGLE_WEIGHT = 0.3  # m per rad in the path parameter, so a pure turn still advances it
 GRID_STEP = 0.02  # path-parameter spacing of TOPP-RA's gridpoints at most
 
@@ -66,7 +64,7 @@ def _times_at(gridpoints: np.ndarray, path_velocity: np.ndarray) -> np.ndarray:
 def time_parameterize(waypoints: np.ndarray, planner: PlannerConfig, start_velocity: np.ndarray | None = None) -> Trajectory:
     """The fastest trajectory through `waypoints` within the limits, from rest or, for a replan mid-flight, leaving
     the first waypoint with `start_velocity` (q̇*: the path starts along it at its speed); it always ends at rest."""
-    # Imported here: toppra imports matplotlib.pyplot (0.4 s), which commands that only read a trajectory never need.
+    # Imported here: toppra imports matplotlib.pyplot, slow to import, which commands that only read a trajectory never need.
     import toppra
     import toppra.algorithm
     import toppra.constraint

@@ -15,15 +15,23 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from itertools import groupby
+from pathlib import Path
 
 import numpy as np
 
 from renderloop.config import Config
+from renderloop.config.fields import MAX_PLANTS
 from renderloop.errors import UserError
+from renderloop.io.atomic import write_text
+from renderloop.io.bounded import check_columns, check_increasing
+from renderloop.io.csvtable import row_name
 from renderloop.planning.transit import TransitPlanner
 from renderloop.robot.kinematics import UnreachablePose, body_to_camera, camera_pose_to_dofs, camera_rotation, homogeneous
+from renderloop.rundir import files, names
 from renderloop.scene.model import Plant, Row, Scene
 
+WAYPOINT_HEADER = ["index", "kind", "plant", "side", "t", "x", "y", "z", "yaw", "q1", "q2", "q3"]
+WAYPOINT_KINDS = ("start", "scan", "transit", "end")
 MAX_TRANSIT_SPACING = 0.4  # m between transit waypoints, so the spline keeps to the checked straight lines
 FOOTPRINT_MARGIN = 0.05  # m added to the robot's radius when routing
 
@@ -176,3 +184,58 @@ def plan_waypoints(scene: Scene, config: Config) -> list[Waypoint]:
     path.extend(transit(router, path[-1], end))
     path.append(end)
     return path
+
+
+# waypoints.csv ----------------------------------------------------------------------------------------------------
+
+WAYPOINT_BOUNDS = files.column_bounds(WAYPOINT_HEADER[4:], {"t": files.TIME, **files.DOF_BOUNDS})  # the numeric columns, from t on
+
+
+def write_waypoints(run_dir: Path, waypoints: list[Waypoint], times: np.ndarray) -> None:
+    """One row per waypoint: what it is for (kind, plant, side), when it is passed, and q* (yaw unwrapped)."""
+    dofs = np.array([w.dofs for w in waypoints])
+    dofs[:, 3] = np.unwrap(dofs[:, 3])
+    lines = [",".join(WAYPOINT_HEADER)]
+    for index, (waypoint, time, q) in enumerate(zip(waypoints, times, dofs)):
+        numbers = ",".join(f"{value:.6f}" for value in (time, *q))
+        lines.append(f"{index},{waypoint.kind},{waypoint.plant},{waypoint.side},{numbers}")
+    write_text(Path(run_dir) / names.WAYPOINTS, "\n".join(lines) + "\n")
+
+
+def read_waypoints(run_dir: Path) -> list[Waypoint]:
+    """The waypoints of `waypoints.csv`, each with the time it is passed as `time`."""
+    files.require(run_dir, (names.WAYPOINTS,))
+    path = Path(run_dir) / names.WAYPOINTS
+    try:
+        rows = path.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        raise UserError(f"{path}: not a readable text file") from None
+    if not rows or rows[0] != ",".join(WAYPOINT_HEADER):
+        raise UserError(f"{path}: header is not {','.join(WAYPOINT_HEADER)}")
+    if len(rows) < 2:
+        raise UserError(f"{path}: holds no waypoints")
+    parsed: list[tuple[str, int, str]] = []
+    numbers = []
+    for index, row in enumerate(rows[1:]):
+        fields = row.split(",")
+        where = f"{path}: {row_name(index)}"
+        if len(fields) != len(WAYPOINT_HEADER):
+            raise UserError(f"{where} has {len(fields)} fields, not {len(WAYPOINT_HEADER)}")
+        if fields[0] != str(index):
+            raise UserError(f"{where} has {fields[0]!r} in column index, not {index}")
+        if fields[1] not in WAYPOINT_KINDS:
+            raise UserError(f"{where} has {fields[1]!r} in column kind, not one of {', '.join(WAYPOINT_KINDS)}")
+        if fields[3] not in ("", "left", "right"):
+            raise UserError(f"{where} has {fields[3]!r} in column side, not left, right or nothing")
+        try:
+            plant = int(fields[2])
+            numbers.append([float(v) for v in fields[4:]])
+        except ValueError:
+            raise UserError(f"{where} is not a waypoint row (a number that is not one)") from None
+        if not -1 <= plant < MAX_PLANTS:
+            raise UserError(f"{where} has {plant} in column plant, out of range [-1, {MAX_PLANTS - 1}]")
+        parsed.append((fields[1], plant, fields[3]))
+    table = np.array(numbers)
+    check_columns(str(path), table, WAYPOINT_HEADER[4:], WAYPOINT_BOUNDS, row_name)
+    check_increasing(str(path), table[:, 0], "t", row_name, strictly=False)
+    return [Waypoint(kind, values[1:], plant, side, float(values[0])) for (kind, plant, side), values in zip(parsed, table)]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -19,7 +20,9 @@ import yaml
 from renderloop.config import CameraConfig
 from renderloop.config.fields import MAX_PIXELS
 from renderloop.errors import UserError
+from renderloop.io.atomic import write_text
 from renderloop.io.bounded import field_bounds, load_yaml, number_text
+from renderloop.rundir import files, names
 
 OPTICAL_TO_GL = np.diag([1.0, -1.0, -1.0])
 CAMERA_NAME = "renderloop_rgbd"
@@ -150,3 +153,17 @@ def parse_camera_info(text: str, source: str = "camera_info.yaml") -> Intrinsics
             raise UserError(f"{source}: camera_matrix: {name} {number_text(value)} is out of range [0, {high}] px, "
                             "outside the image")
     return intrinsics
+
+
+def write_camera_info(run_dir: Path, intrinsics: Intrinsics) -> None:
+    write_text(Path(run_dir) / names.CAMERA_INFO, camera_info_yaml(intrinsics))
+
+
+def read_camera_info(run_dir: Path) -> Intrinsics:
+    files.require(run_dir, (names.CAMERA_INFO,))
+    path = Path(run_dir) / names.CAMERA_INFO
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise UserError(f"{path}: not a ROS camera_info YAML") from None
+    return parse_camera_info(text, str(path))

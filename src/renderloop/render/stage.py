@@ -17,14 +17,16 @@ import numpy as np
 
 from renderloop.config import BouncesConfig, Config, RasterConfig, SensorConfig
 from renderloop.errors import UserError
-from renderloop.render.camera import Intrinsics
+from renderloop.io import ownership
+from renderloop.render.camera import Intrinsics, write_camera_info
 from renderloop.render.contact_sheet import draw_contact_sheet
 from renderloop.render.executor import blurs_motion, render_frames
 from renderloop.render.frames import frame_done, streams_of, write_frame
 from renderloop.render.motion import FlownStates, frames_motion
-from renderloop.rundir import files, names, ownership
+from renderloop.rundir import files, names
 from renderloop.rundir.models import RenderRecord
 from renderloop.rundir.stage import Job, Stage
+from renderloop.scene.model import read_scene
 
 NEEDS = (names.CONFIG, names.SCENE, names.POSES)
 # Bytes a frame may take on disk at most per pixel: 8-bit RGB, then 16-bit depth, mask and sensor depth, as if
@@ -97,7 +99,7 @@ def _render(run_dir: Path, config: Config, job: Job) -> None:
         job.progress(done, len(poses))
     if todo:
         check_disk(run_dir, config, len(todo))
-        scene = files.read_scene(run_dir)
+        scene = read_scene(run_dir)
         motion = None
         if blurs_motion(config):  # the camera's motion while each frame's shutter is open, as it was flown
             states = FlownStates.of_flight(files.read_flight(run_dir))
@@ -119,7 +121,7 @@ def clear_frames(run_dir: Path) -> None:
 
 def finish_render(run_dir: Path, config: Config, times: np.ndarray) -> None:
     """With every frame written: the camera's intrinsics, the TUM lists of each stream and the contact sheet."""
-    files.write_camera_info(run_dir, Intrinsics.from_config(config.camera))
+    write_camera_info(run_dir, Intrinsics.from_config(config.camera))
     for stream in streams_of(config):
         if stream != names.MASKS:  # the TUM lists name images; masks are ours alone
             files.write_frames_index(run_dir, stream, times)

@@ -26,12 +26,14 @@ from PIL import Image
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_text
 from renderloop.pipeline import stages_of
+from renderloop.render.camera import read_camera_info
 from renderloop.report import words
 from renderloop.report.plants import legend, plant_cards
 from renderloop.report.view3d import greenhouse_figure, greenhouse_html
 from renderloop.rundir import files, names
 from renderloop.rundir.models import Counts, Estimate, Harvest, Mission
 from renderloop.rundir.stage import claim
+from renderloop.scene.model import read_scene
 
 REQUIRED = (names.CONFIG, names.TOP_VIEW, names.FLIGHT_PATHS, names.TRACKING_ERROR, names.CONTACT_SHEET,
             names.DETECTION_SHEET, names.DETECTION_SCORES, names.COUNTS, names.HARVEST)
@@ -216,10 +218,10 @@ def build_report(run_dir: Path) -> str:
     config = files.read_config(run_dir)  # a run directory at all
     files.require(run_dir, REQUIRED)
     config_text = (run_dir / names.CONFIG).read_text(encoding="utf-8")
-    scene = files.read_scene(run_dir)
+    scene = read_scene(run_dir)
     times, poses = files.read_poses(run_dir)
     flight = files.read_flight(run_dir)
-    intrinsics = files.read_camera_info(run_dir)
+    intrinsics = read_camera_info(run_dir)
     detections = files.read_detections(run_dir, len(poses))
     scores = files.read_detection_scores(run_dir)
     counts = files.read_counts(run_dir)

@@ -41,6 +41,10 @@ def homogeneous(rotation: np.ndarray, translation: Sequence[float]) -> np.ndarra
     return transform
 
 
+def yaw_quaternion_wxyz(yaw: float) -> np.ndarray:
+    return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+
+
 def arm_frames(arm: ArmConfig, q: Sequence[float]) -> list[np.ndarray]:
     """Body-frame poses of joint 1, joint 2, joint 3 (each after its rotation) and the optical frame."""
     frames = []

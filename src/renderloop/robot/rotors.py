@@ -42,7 +42,7 @@ class RotorModel:
     """Rotor speeds <-> body wrench, with saturation and an optional first-order motor lag."""
 
     def __init__(self, robot: RobotConfig):
-        from renderloop.control import kernel  # numba loads with the first rotor model, not with the package
+        from renderloop.robot import kernel  # numba loads with the first rotor model, not with the package
 
         rotor = robot.rotor
         self.kf = rotor.kf

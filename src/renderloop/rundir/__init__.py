@@ -3,7 +3,5 @@
 - `names`: every file of a run, named once, and which stage writes which.
 - `models`: the JSON files as pydantic models.
 - `files`: a typed reader and writer per file; the only way stages read each other's files.
-- `ownership`: which directories renderloop may write into, and which files in them it wrote.
 - `stage`: the Stage every pipeline step is, with its require / complete / skip check.
-- `contents`: everything a run holds, read at once, for the exporters.
 """

@@ -1,13 +1,17 @@
-"""A typed reader and writer for every file of a run directory.
+"""A typed reader and writer for every file of a run directory, and the bounds of its tables.
 
 Stages, the report, the evaluation and the exporters read each other's files only
-through here, so a format lives in one place. Every reader turns a missing, damaged
+through here, so a format lives in one place; the three files that hold a domain's own
+type are read and written beside that type, with the names and bounds here
+(`scene.json`: `renderloop.scene.model`, `waypoints.csv`: `renderloop.planning.waypoints`,
+`camera_info.yaml`: `renderloop.render.camera`), since rundir lies below the domain
+(docs/design.md, Layers). Every reader turns a missing, damaged
 or hand-edited file into one UserError line naming the file (and the field, for JSON;
 the row and column, for tables); every number is checked finite and within its bound
 (the tables' below, the JSON files' in `renderloop.rundir.models` and
 `renderloop.scene.model`), and no document is parsed that nests deeper than
 `renderloop.io.bounded.MAX_DEPTH`. Every writer writes atomically
-(`renderloop.io.atomic`) into a directory renderloop owns (`renderloop.rundir.ownership`).
+(`renderloop.io.atomic`) into a directory renderloop owns (`renderloop.io.ownership`).
 """
 
 from __future__ import annotations
@@ -20,16 +24,12 @@ import numpy as np
 from pydantic import BaseModel, ValidationError
 
 from renderloop.config import Config, PlannerConfig, RotorConfig, load_resolved
-from renderloop.config.fields import MAX_PLANTS
+from renderloop.config.fields import WORLD_BOUND
 from renderloop.errors import UserError, problem
 from renderloop.io.atomic import dumps_json, write_text
-from renderloop.io.bounded import Bound, check_columns, check_increasing, check_json_depth, field_bounds, load_json, number_text
+from renderloop.io.bounded import Bound, check_increasing, check_json_depth, field_bounds, load_json, number_text
 from renderloop.io.csvtable import read_csv, row_name, write_csv
 from renderloop.io.tum import read_tum, write_tum
-from renderloop.planning.trajectory import HEADER as TRAJECTORY_HEADER
-from renderloop.planning.waypoints import Waypoint
-from renderloop.render.camera import Intrinsics, camera_info_yaml, parse_camera_info
-from renderloop.robot.kinematics import homogeneous
 from renderloop.rundir import names
 from renderloop.rundir.models import (
     MAX_COUNT,
@@ -43,12 +43,9 @@ from renderloop.rundir.models import (
     RenderRecord,
     Timings,
 )
-from renderloop.scene.model import WORLD_BOUND, Scene, load_scene
 
 Model = TypeVar("Model", bound=BaseModel)
 
-WAYPOINT_HEADER = ["index", "kind", "plant", "side", "t", "x", "y", "z", "yaw", "q1", "q2", "q3"]
-WAYPOINT_KINDS = ("start", "scan", "transit", "end")
 FLIGHT_HEADER = [
     "t", "x", "y", "z", "qx", "qy", "qz", "qw", "q1", "q2", "q3", "w1", "w2", "w3", "w4",
     "ref_x", "ref_y", "ref_z", "ref_yaw", "ref_q1", "ref_q2", "ref_q3",
@@ -84,22 +81,22 @@ ROTOR_SPEED = Bound(0.0, field_bounds(RotorConfig, "max_speed")[1], "rad/s")
 COUNT = Bound(0, MAX_COUNT, integer=True)
 FLAG = Bound(0, 1, integer=True)
 
-_DOF = {"x": POSITION, "y": POSITION, "z": POSITION, "yaw": HEADING, "q1": TURN, "q2": TURN, "q3": TURN}  # q*
+DOF_BOUNDS = {"x": POSITION, "y": POSITION, "z": POSITION, "yaw": HEADING, "q1": TURN, "q2": TURN, "q3": TURN}  # q*
+TRAJECTORY_HEADER = ["t", *DOF_BOUNDS, *(f"d{name}" for name in DOF_BOUNDS), *(f"dd{name}" for name in DOF_BOUNDS)]
 
 
-def _bounds(header: list[str], bound_of: dict[str, Bound]) -> list[Bound]:
+def column_bounds(header: list[str], bound_of: dict[str, Bound]) -> list[Bound]:
     """One bound per column of `header`, from the column's name."""
     assert set(bound_of) == set(header), set(bound_of) ^ set(header)
     return [bound_of[name] for name in header]
 
 
-WAYPOINT_BOUNDS = _bounds(WAYPOINT_HEADER[4:], {"t": TIME, **_DOF})  # the numeric columns, from t on
-TRAJECTORY_BOUNDS = _bounds(TRAJECTORY_HEADER, {
-    "t": TIME, **_DOF, **{f"d{name}": RATE for name in _DOF}, **{f"dd{name}": ACCELERATION for name in _DOF}})
-FLIGHT_BOUNDS = _bounds(FLIGHT_HEADER, {
+TRAJECTORY_BOUNDS = column_bounds(TRAJECTORY_HEADER, {
+    "t": TIME, **DOF_BOUNDS, **{f"d{name}": RATE for name in DOF_BOUNDS}, **{f"dd{name}": ACCELERATION for name in DOF_BOUNDS}})
+FLIGHT_BOUNDS = column_bounds(FLIGHT_HEADER, {
     "t": TIME, "x": POSITION, "y": POSITION, "z": POSITION, **dict.fromkeys(("qx", "qy", "qz", "qw"), QUATERNION),
     "q1": TURN, "q2": TURN, "q3": TURN, **dict.fromkeys(("w1", "w2", "w3", "w4"), ROTOR_SPEED),
-    **{f"ref_{name}": bound for name, bound in _DOF.items()},
+    **{f"ref_{name}": bound for name, bound in DOF_BOUNDS.items()},
     "err_x": OFFSET, "err_y": OFFSET, "err_z": OFFSET, "err_yaw": TURN,
     "cam_x": POSITION, "cam_y": POSITION, "cam_z": POSITION, "cam_err": DISTANCE, "contacts": COUNT, "saturated": FLAG})
 # The planner samples at planner.sample_rate_hz: rows this far off their one step apart are not its (6 decimals
@@ -142,6 +139,14 @@ def write_model(path: Path, document: BaseModel) -> None:
     write_text(path, dumps_json(document.model_dump(mode="json")))
 
 
+def _is_file(path: Path) -> bool:
+    """Whether `path` is a file; a name the file system cannot hold (too long, say) is not a file of the run."""
+    try:
+        return path.is_file()
+    except OSError:
+        return False
+
+
 def read_detections(run_dir: Path, frame_count: int) -> Detections:
     """`detections.json`, checked against the run: every frame a frame of groundtruth.txt, once, and its image a
     file of the run, so counts are never made from another run's detections."""
@@ -159,7 +164,7 @@ def read_detections(run_dir: Path, frame_count: int) -> Detections:
             raise UserError(f"{where}: frame index {frame.index} appears twice")
         seen.add(frame.index)
         image = PurePosixPath(frame.image)
-        if image.is_absolute() or ".." in image.parts or not (run_dir / image).is_file():
+        if image.is_absolute() or ".." in image.parts or not _is_file(run_dir / image):
             raise UserError(f"{where}: image {frame.image!r} is not a file of {run_dir}")
     return data
 
@@ -217,7 +222,7 @@ def read_render_record(run_dir: Path) -> RenderRecord | None:
         return None
 
 
-# The config and the scene -----------------------------------------------------------------------------------------
+# The config -----------------------------------------------------------------------------------------------
 
 def read_config(run_dir: Path) -> Config:
     path = Path(run_dir) / names.CONFIG
@@ -244,69 +249,7 @@ def check_config(run_dir: Path, config: Config) -> None:
         raise UserError(f"{path}: this run directory was made with another config; use --force to start it again, or another --out")
 
 
-def read_scene(run_dir: Path) -> Scene:
-    path = Path(run_dir) / names.SCENE
-    if not path.is_file():
-        raise _missing(run_dir, names.SCENE)
-    return load_scene(path)
-
-
-def write_scene(run_dir: Path, scene: Scene) -> None:
-    write_text(Path(run_dir) / names.SCENE, dumps_json(scene.model_dump(mode="json")))
-
-
-# Tables: waypoints, trajectory, flight, poses, frame lists ----------------------------------------------------------
-
-def write_waypoints(run_dir: Path, waypoints: list[Waypoint], times: np.ndarray) -> None:
-    """One row per waypoint: what it is for (kind, plant, side), when it is passed, and q* (yaw unwrapped)."""
-    dofs = np.array([w.dofs for w in waypoints])
-    dofs[:, 3] = np.unwrap(dofs[:, 3])
-    lines = [",".join(WAYPOINT_HEADER)]
-    for index, (waypoint, time, q) in enumerate(zip(waypoints, times, dofs)):
-        numbers = ",".join(f"{value:.6f}" for value in (time, *q))
-        lines.append(f"{index},{waypoint.kind},{waypoint.plant},{waypoint.side},{numbers}")
-    write_text(Path(run_dir) / names.WAYPOINTS, "\n".join(lines) + "\n")
-
-
-def read_waypoints(run_dir: Path) -> list[Waypoint]:
-    """The waypoints of `waypoints.csv`, each with the time it is passed as `time`."""
-    path = Path(run_dir) / names.WAYPOINTS
-    try:
-        rows = path.read_text(encoding="utf-8").splitlines()
-    except FileNotFoundError:
-        raise _missing(run_dir, names.WAYPOINTS) from None
-    except (OSError, UnicodeDecodeError):
-        raise UserError(f"{path}: not a readable text file") from None
-    if not rows or rows[0] != ",".join(WAYPOINT_HEADER):
-        raise UserError(f"{path}: header is not {','.join(WAYPOINT_HEADER)}")
-    if len(rows) < 2:
-        raise UserError(f"{path}: holds no waypoints")
-    parsed: list[tuple[str, int, str]] = []
-    numbers = []
-    for index, row in enumerate(rows[1:]):
-        fields = row.split(",")
-        where = f"{path}: {row_name(index)}"
-        if len(fields) != len(WAYPOINT_HEADER):
-            raise UserError(f"{where} has {len(fields)} fields, not {len(WAYPOINT_HEADER)}")
-        if fields[0] != str(index):
-            raise UserError(f"{where} has {fields[0]!r} in column index, not {index}")
-        if fields[1] not in WAYPOINT_KINDS:
-            raise UserError(f"{where} has {fields[1]!r} in column kind, not one of {', '.join(WAYPOINT_KINDS)}")
-        if fields[3] not in ("", "left", "right"):
-            raise UserError(f"{where} has {fields[3]!r} in column side, not left, right or nothing")
-        try:
-            plant = int(fields[2])
-            numbers.append([float(v) for v in fields[4:]])
-        except ValueError:
-            raise UserError(f"{where} is not a waypoint row (a number that is not one)") from None
-        if not -1 <= plant < MAX_PLANTS:
-            raise UserError(f"{where} has {plant} in column plant, out of range [-1, {MAX_PLANTS - 1}]")
-        parsed.append((fields[1], plant, fields[3]))
-    table = np.array(numbers)
-    check_columns(str(path), table, WAYPOINT_HEADER[4:], WAYPOINT_BOUNDS, row_name)
-    check_increasing(str(path), table[:, 0], "t", row_name, strictly=False)
-    return [Waypoint(kind, values[1:], plant, side, float(values[0])) for (kind, plant, side), values in zip(parsed, table)]
-
+# Tables: trajectory, flight, poses, frame lists ----------------------------------------------------------
 
 def write_trajectory(run_dir: Path, table: np.ndarray) -> None:
     write_csv(Path(run_dir) / names.TRAJECTORY, TRAJECTORY_HEADER, table)
@@ -348,7 +291,9 @@ def read_poses(run_dir: Path) -> tuple[np.ndarray, np.ndarray]:
     """The camera's timestamps (N,) and optical-frame poses in the world, T_world_optical (N, 4, 4)."""
     require(run_dir, (names.POSES,))
     times, positions, rotations = read_tum(Path(run_dir) / names.POSES, TIME, POSITION)
-    return times, np.array([homogeneous(r, p) for r, p in zip(rotations, positions)])
+    poses = np.tile(np.eye(4), (len(times), 1, 1))
+    poses[:, :3, :3], poses[:, :3, 3] = rotations, positions
+    return times, poses
 
 
 def write_frames_index(run_dir: Path, stream: str, times: np.ndarray) -> None:
@@ -386,23 +331,6 @@ def read_frames_index(run_dir: Path, stream: str) -> list[tuple[float, str]]:
         if relative.is_absolute() or ".." in relative.parts or "\\" in image:
             raise UserError(f"{path}: line {number} names {image!r}, not a file inside the run directory")
     return entries
-
-
-# Camera intrinsics ------------------------------------------------------------------------------------------------
-
-def write_camera_info(run_dir: Path, intrinsics: Intrinsics) -> None:
-    write_text(Path(run_dir) / names.CAMERA_INFO, camera_info_yaml(intrinsics))
-
-
-def read_camera_info(run_dir: Path) -> Intrinsics:
-    path = Path(run_dir) / names.CAMERA_INFO
-    if not path.is_file():
-        raise _missing(run_dir, names.CAMERA_INFO)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise UserError(f"{path}: not a ROS camera_info YAML") from None
-    return parse_camera_info(text, str(path))
 
 
 def read_json(path: Path) -> object:

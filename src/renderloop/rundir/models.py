@@ -14,9 +14,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, RootModel, model_validator
 
-from renderloop.config.fields import MAX_PLANTS, MAX_TABLES
+from renderloop.config.fields import MAX_PLANTS, MAX_TABLES, WORLD_BOUND
 from renderloop.io.images import MAX_PIXELS
-from renderloop.scene.model import WORLD_BOUND
 
 # About 16 weeks: longer than any scan the config allows (the planner's slowest limits over the largest floor take
 # days), short enough that a time keeps its microseconds in a float64. Stage timings (wall-clock) share it.

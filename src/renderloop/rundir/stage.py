@@ -15,9 +15,9 @@ from pathlib import Path
 
 from renderloop.config import Config, load_resolved
 from renderloop.errors import UserError
+from renderloop.io import ownership
 from renderloop.parallel import LOCAL, Executor
-from renderloop.rundir import files, names, ownership
-from renderloop.scene.model import load_scene
+from renderloop.rundir import files, names
 
 Progress = Callable[[int, int], None]
 
@@ -66,8 +66,8 @@ class Stage:
 
 
 def _older_run(directory: Path) -> bool:
-    """A run directory from before the ownership mark: its config and scene load as ours and every entry has one of
-    our names (a TUM RGB-D folder has our frame names, never our scene)."""
+    """A run directory from before the ownership mark: its config loads as ours, it holds a scene, and every entry has
+    one of our names (a TUM RGB-D folder has our frame names, never our config)."""
     known = {name for outputs in names.OUTPUTS.values() for name in outputs}
     known |= {*names.FRAME_DIRS, names.frames_index(names.DEPTH_SENSOR), names.RENDER_RECORD, names.DETECT_CACHE,
               names.COUNT_PLOTS, names.TIMINGS, names.REPORT}
@@ -76,7 +76,6 @@ def _older_run(directory: Path) -> bool:
         return False
     try:
         load_resolved(directory / names.CONFIG)
-        load_scene(directory / names.SCENE)
     except UserError:
         return False
     return True

@@ -23,19 +23,16 @@ from typing import Annotated, Any, Literal
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from renderloop.config import Config, EnvironmentConfig
-from renderloop.config.fields import MAX_PLANTS, MAX_TABLES
+from renderloop.config.fields import MAX_PLANTS, MAX_TABLES, WORLD_BOUND
 from renderloop.errors import UserError, problem
+from renderloop.io.atomic import write_json
 from renderloop.io.bounded import field_bounds, load_json
+from renderloop.rundir import names
 
 FORMAT_VERSION = 1
 MAX_PEPPER_ID = 32766
 NEIGHBOUR_FRUIT_ID = 32767
 
-# The room's centre is the origin. No room side is longer than MAX_ROOM_SIDE (200 m) and the film greenhouse
-# reaches at most 50 m (`extent`) beyond it, under gutters at most 20 m high: every point of a scene the config
-# makes lies within 150 m of the origin. 1000 m leaves room for a hand-built scene and still stops a unit slip
-# or an overflow long before physics or rendering meets it; the run's tables (trajectory, flight, poses) share it.
-WORLD_BOUND = 1000.0  # m
 # The largest part of a plant the config makes is under 2 m (a pot, a leaf, a fruit): 10 m is no plant's part.
 PART_SIZE = 10.0  # m
 UNIT_TOLERANCE = 1e-3  # how far from length 1 a direction may be
@@ -309,3 +306,14 @@ def load_scene(path: Path) -> Scene:
     if scene.format_version != FORMAT_VERSION:
         raise UserError(f"{path}: format_version {scene.format_version} is not {FORMAT_VERSION}")
     return scene
+
+
+def read_scene(run_dir: Path) -> Scene:
+    from renderloop.rundir import files  # the tables' readers load scipy, which training, reading scenes, does without
+
+    files.require(run_dir, (names.SCENE,))
+    return load_scene(Path(run_dir) / names.SCENE)
+
+
+def write_scene(run_dir: Path, scene: Scene) -> None:
+    write_json(Path(run_dir) / names.SCENE, scene.model_dump(mode="json"))

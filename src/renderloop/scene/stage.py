@@ -11,6 +11,7 @@ from renderloop.io.atomic import write_text
 from renderloop.rundir import files, names
 from renderloop.rundir.stage import Job, Stage, claim
 from renderloop.scene.generate import generate_scene
+from renderloop.scene.model import write_scene
 from renderloop.scene.topview import draw_top_view
 from renderloop.scene.world import world_xml
 
@@ -30,7 +31,7 @@ def _scene(run_dir: Path, config: Config, job: Job) -> None:
     files.write_config(run_dir, config)
     write_text(run_dir / names.WORLD, world)
     draw_top_view(scene, run_dir / names.TOP_VIEW)
-    files.write_scene(run_dir, scene)
+    write_scene(run_dir, scene)
 
 
 STAGE = Stage("scene", needs=(), work=_scene, current=_same_config)

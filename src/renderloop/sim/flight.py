@@ -11,7 +11,6 @@ part of a step is computed twice.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import mujoco
@@ -21,10 +20,10 @@ from renderloop.config import Config
 from renderloop.control.arm import ArmController
 from renderloop.control.uav import UavController
 from renderloop.errors import UserError
+from renderloop.robot.kinematics import yaw_quaternion_wxyz
 from renderloop.robot.mjcf import CAMERA_SITE, JOINT_NAMES
 from renderloop.robot.rotors import RotorModel
 
-ARM = slice(6, 9)  # arm joints in qvel (after the free joint's 6)
 XYZW = [4, 5, 6, 3]  # the free joint's quaternion in qpos, reordered to qx qy qz qw
 
 
@@ -64,6 +63,12 @@ class FlightLog:
     saturated: np.ndarray
 
 
+def camera_frames(log: FlightLog, duration: float, rate_hz: float) -> np.ndarray:
+    """Indices of the log at the camera's instants k / rate_hz (the nearest control tick)."""
+    times = np.arange(0.0, duration + 1e-9, 1.0 / rate_hz)
+    return np.unique(np.clip(np.searchsorted(log.t, times - 1e-9), 0, len(log.t) - 1))
+
+
 def flight_table(log: FlightLog, planned_camera: np.ndarray) -> np.ndarray:
     yaw = np.arctan2(2 * (log.quaternion[:, 3] * log.quaternion[:, 2] + log.quaternion[:, 0] * log.quaternion[:, 1]),
                      1 - 2 * (log.quaternion[:, 1] ** 2 + log.quaternion[:, 2] ** 2))
@@ -73,10 +78,6 @@ def flight_table(log: FlightLog, planned_camera: np.ndarray) -> np.ndarray:
         log.t, log.position, log.quaternion, log.joints, log.rotor_speeds, log.reference,
         errors, log.camera_position, camera_error, log.contacts, log.saturated,
     ])
-
-
-def yaw_quaternion_wxyz(yaw: float) -> np.ndarray:
-    return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
 
 
 class Flight:
@@ -101,9 +102,9 @@ class Flight:
         self.joint_qpos = np.array([model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in JOINT_NAMES])
         self.speeds = np.zeros(4)
         self.full_mass = np.zeros((model.nv, model.nv))
-        # The controllers' arithmetic runs compiled, one call a tick (control.kernel); what the call reads and
+        # The controllers' arithmetic runs compiled, one call a tick (robot.kernel); what the call reads and
         # writes is fetched here once, as each attribute of MjData makes a new array object.
-        from renderloop.control.kernel import control_tick
+        from renderloop.robot.kernel import control_tick
 
         self._control_tick = control_tick
         self._qpos, self._qvel, self._bias, self._ctrl = self.data.qpos, self.data.qvel, self.data.qfrc_bias, self.data.ctrl

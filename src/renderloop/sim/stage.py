@@ -8,22 +8,18 @@ import mujoco
 import numpy as np
 
 from renderloop.config import Config
+from renderloop.planning.waypoints import read_waypoints
 from renderloop.robot.kinematics import planned_camera_positions
 from renderloop.rundir import files, names
 from renderloop.rundir.stage import Job, Stage
-from renderloop.sim.flight import FlightLog, Reference, flight_table, fly
+from renderloop.scene.model import read_scene
+from renderloop.sim.flight import FlightLog, Reference, camera_frames, flight_table, fly
 from renderloop.sim.plots import draw_flight_paths, draw_tracking_error
-
-
-def camera_frames(log: FlightLog, duration: float, rate_hz: float) -> np.ndarray:
-    """Indices of the log at the camera's instants k / rate_hz (the nearest control tick)."""
-    times = np.arange(0.0, duration + 1e-9, 1.0 / rate_hz)
-    return np.unique(np.clip(np.searchsorted(log.t, times - 1e-9), 0, len(log.t) - 1))
 
 
 def write_flight(run_dir: Path, config: Config, log: FlightLog, frames: np.ndarray) -> None:
     """flight.csv, the camera poses at the `frames` ticks (groundtruth.txt) and the flight's figures."""
-    scene, waypoints = files.read_scene(run_dir), files.read_waypoints(run_dir)
+    scene, waypoints = read_scene(run_dir), read_waypoints(run_dir)
     planned_camera = planned_camera_positions(log.reference, config.robot.arm)
     files.write_flight(run_dir, flight_table(log, planned_camera))
     files.write_poses(run_dir, log.t[frames], log.camera_position[frames], log.camera_rotation[frames])
@@ -33,7 +29,7 @@ def write_flight(run_dir: Path, config: Config, log: FlightLog, frames: np.ndarr
 
 def _fly(run_dir: Path, config: Config, job: Job) -> None:
     table = files.read_trajectory(run_dir)
-    files.read_waypoints(run_dir)  # every input is read before any output is replaced
+    read_waypoints(run_dir)  # every input is read before any output is replaced
     reference = Reference(table[:, 0], table[:, 1:8], table[:, 8:15], table[:, 15:22])
     model = mujoco.MjModel.from_xml_path(str(run_dir / names.WORLD))
     log = fly(model, config, reference)

