@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 from pydantic import Field
 
-from renderloop.config import Config, validate
+from renderloop.config import Config
 from renderloop.config.fields import Real, Strict, checked
 from renderloop.errors import UserError
 from renderloop.loop.reference import ReferencePlan
@@ -71,7 +71,7 @@ class Simulation:
         if not isinstance(config, Config):
             raise UserError(f"Simulation: config is a {type(config).__name__}, not a renderloop Config (load_config)")
         # validated again: a Config changed by model_copy(update=...) rather than `override` is not, and would fail stages later
-        config = validate(config.model_dump(mode="json"), "Simulation config")
+        config = config.override({}, "Simulation config")
         hold = checked(SimulationSettings, "Simulation", hold=hold).hold
         self.config, self.run_dir, self.hold = config, Path(run_dir), hold
         run_scene(self.run_dir, config)  # skipped when the run directory already holds this config's scene
