@@ -90,7 +90,7 @@ def run_dirs(paths: list[Path]) -> list[Path]:
 def gather(run: Path, everies: list[int], interval: IntervalConfig) -> tuple[list[Case], dict[int, float]]:
     """Every plant's evidence at each thinning, and the seconds each took (the redraws' cost)."""
     config = files.read_config(run)
-    counting = config.counting.model_copy(update={"interval": interval})
+    counting = config.override({"counting": {"interval": interval}}).counting
     scene = read_scene(run)
     times, poses = files.read_poses(run)
     detections = files.read_detections(run, len(times))

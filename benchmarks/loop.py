@@ -27,7 +27,7 @@ from common import summary
 from renderloop.config import Config, load_config
 from renderloop.counting.online import OnlineCounter
 from renderloop.loop.simulation import Simulation
-from renderloop.loop.stage import OnlinePerception
+from renderloop.loop.perceive import OnlinePerception
 
 
 def _config(backend: str, rate_hz: float, one_pass: bool = False, fast_look: bool = False) -> Config:

@@ -46,8 +46,7 @@ def timed(call) -> tuple[float, float]:
 
 
 def measure(config, scene, poses: list[np.ndarray]) -> dict[str, dict[str, float]]:
-    sensor_on = config.model_copy(update={"camera": config.camera.model_copy(
-        update={"sensor": config.camera.sensor.model_copy(update={"enabled": True})})})
+    sensor_on = config.override({"camera": {"sensor": {"enabled": True}}})
     worker = FrameWorker(sensor_on, scene)  # the demo preset's backend: Cycles
     try:
         renderer = worker.renderer
@@ -80,7 +79,7 @@ def main() -> None:
     poses = scan_poses(scene, args.repeats)
     results = {}
     for width, height in ((320, 240), (640, 480)):
-        config = paper.model_copy(update={"camera": paper.camera.model_copy(update={"width": width, "height": height})})
+        config = paper.override({"camera": {"width": width, "height": height}})
         results[f"{width}x{height}"] = measure(config, scene, poses)
     print(f"motion blur: paper scene, {paper.renderer.samples} spp, denoise {paper.renderer.denoise}, "
           f"{len(poses)} poses, camera {SPEED} m/s and {TURN} rad/s over {EXPOSURE * 1000:.0f} ms")

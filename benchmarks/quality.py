@@ -41,7 +41,7 @@ def main() -> None:
     detector = Detector()
     results = {}
     for samples in args.samples:
-        quality = config.model_copy(update={"renderer": config.renderer.model_copy(update={"samples": samples})})
+        quality = config.override({"renderer": {"samples": samples}})
         score, seconds = RunScore.of_scene(scene), []
         with CyclesRenderer(scene, quality, Intrinsics.from_config(config.camera)) as renderer:
             for pose in chosen:

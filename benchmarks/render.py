@@ -62,18 +62,17 @@ def main() -> None:
     scene = generate_scene(paper)
     poses = scan_poses(scene, args.repeats)
     default_seconds, default_share = cycles_frames(scene, paper, poses)
-    high = paper.model_copy(update={"renderer": paper.renderer.model_copy(update={"samples": args.high_samples})})
+    high = paper.override({"renderer": {"samples": args.high_samples}})
     high_seconds, high_share = cycles_frames(scene, high, poses[:1])
     raster_ms = {}
     for name, look in (("default", {}), ("plain", {"shadows": False, "antialias": 0})):
-        update = {"raster": paper.renderer.raster.model_copy(update=look)}
-        config = paper.model_copy(update={"renderer": paper.renderer.model_copy(update=update)})
+        config = paper.override({"renderer": {"raster": look}})
         with RasterRenderer(scene, config, Intrinsics.from_config(paper.camera)) as raster:
             raster.render(poses[0])
             raster_ms[name] = [1000 * raster.render(pose).timings["total"] for pose in poses * 5]
 
     demo = load_config("demo")
-    demo = demo.model_copy(update={"camera": demo.camera.model_copy(update={"rate_hz": 0.25})})  # about 20 frames
+    demo = demo.override({"camera": {"rate_hz": 0.25}})  # about 20 frames
     with tempfile.TemporaryDirectory() as tmp:
         run_dir = Path(tmp)
         run_scene(run_dir, demo)

@@ -201,13 +201,13 @@ def test_entry_point_reports_bad_input_without_traceback(tmp_path: Path):
         capture_output=True, text=True,
     )
     assert result.returncode == 2
-    assert result.stderr.strip() == "renderloop: error: unknown preset 'nope' (choose from: demo, paper, greenhouse)"
+    assert result.stderr.strip() == "renderloop: error: unknown preset 'nope' (choose from: demo, paper, greenhouse, commercial)"
 
 
 def test_config_prints_the_resolved_config_and_the_schema_of_every_field(monkeypatch, capsys, tmp_path: Path):
     code, stdout, _ = cli(monkeypatch, capsys, "config", "--preset", "paper", "--seed", "7")
     assert code == 0 and load_config("paper", seed=7).to_yaml() == stdout
-    code, stdout, _ = cli(monkeypatch, capsys, "config", "--schema")
+    code, stdout, _ = cli(monkeypatch, capsys, "config", "--schema", "--format", "json")
     schema = json.loads(stdout)
     rate = schema["$defs"]["CameraConfig"]["properties"]["rate_hz"]
     assert code == 0 and "Hz" in rate["description"] and rate["default"] == 5.0 and "maximum" in rate

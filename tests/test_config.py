@@ -40,15 +40,6 @@ def test_resolved_config_round_trips_through_yaml(tmp_path: Path):
     assert load_resolved(path) == config
 
 
-
-def test_a_run_written_before_window_layouts_reads_its_grid_as_square_windows(tmp_path: Path):
-    path = tmp_path / "config.yaml"
-    text = load_config("paper").to_yaml()
-    assert "windows: [2x2, 3x2]" in text
-    for grid, windows in (("2", ("2x2",)), ("1", ())):
-        path.write_text(text.replace("windows: [2x2, 3x2]", f"grid: {grid}"))
-        assert load_resolved(path).detector.windows == windows
-
 @pytest.mark.parametrize(
     ("yaml_text", "message"),
     [

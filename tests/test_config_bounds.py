@@ -282,7 +282,7 @@ def test_a_config_that_loads_gets_through_scene_and_plan_or_fails_in_one_line(dr
         ({"greenhouse": {"size": [200, 100, 4]}}, "greenhouse: size: a 200 x 100 m floor is larger than 10000 m²"),
         ({"greenhouse": {"tables": [[0, 0]] * 30, "plants_per_table": 200, "table_size": [0.5, 100, 0.6]}},
          "greenhouse: plants_per_table: 30 tables of 200 plants are more than 5000 plants"),
-        ({"plants": {"leaves": [10, 2000]}, "greenhouse": {"plants_per_table": 4, "tables": [[-3, -2.5]] * 30}},
+        ({"plants": {"leaves": [10, 2000], "prototypes": 120}, "greenhouse": {"plants_per_table": 4, "tables": [[-3, -2.5]] * 30}},
          "plants.leaves: 120 plants of up to 2000 leaves are more than 200000 leaves"),
         ({"greenhouse": {"workstation_center": [5.9, 0]}}, "greenhouse: workstation_center: the workstation at (5.9, 0.0) lies outside"),
         ({"robot": {"inertia": [0.01, 0.01, 0.05]}}, "robot: inertia: no rigid body has principal moments"),

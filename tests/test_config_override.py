@@ -46,9 +46,9 @@ def test_an_override_out_of_range_is_the_one_line_a_config_file_gets(tmp_path: P
 
 
 @pytest.mark.parametrize(("patch", "sentence"), [
-    ({"camera": {"widht": 160}}, "camera.widht: unknown field"),
-    ({"cameras": {"width": 160}}, "cameras: unknown field"),
-    ({"plants": {"peppers": {"per_sides": (2, 3)}}}, "plants.peppers.per_sides: unknown field"),
+    ({"camera": {"widht": 160}}, "camera.widht: unknown field; did you mean camera.width?"),
+    ({"cameras": {"width": 160}}, "cameras: unknown field; did you mean camera?"),
+    ({"plants": {"peppers": {"per_sides": (2, 3)}}}, "plants.peppers.per_sides: unknown field; did you mean plants.peppers.per_side?"),
 ])
 def test_an_override_refuses_a_key_no_field_has(patch: dict, sentence: str):
     with pytest.raises(UserError) as refused:

@@ -43,6 +43,7 @@ from renderloop.errors import UserError
 from renderloop.io.atomic import dumps_json
 from renderloop.io.tum import write_tum
 from renderloop.rundir import files
+from renderloop.rundir.stage import claim
 from renderloop.rundir.files import read_counts, write_config
 from renderloop.scene.model import Scene, read_scene
 
@@ -87,7 +88,7 @@ def detections_document(points: dict[str, np.ndarray], frames: int = FRAMES) -> 
 
 
 def make_run(run_dir: Path, config: Config, scene: Scene, points: dict[str, np.ndarray] | None) -> Path:
-    run_dir.mkdir(parents=True, exist_ok=True)
+    claim(run_dir)  # marked ours, as `renderloop scene` marks a run directory
     write_config(run_dir, config)
     (run_dir / "scene.json").write_text(dumps_json(scene.model_dump(mode="json")), encoding="utf-8")
     write_tum(run_dir / "groundtruth.txt", np.arange(FRAMES) * 0.5, np.zeros((FRAMES, 3)),

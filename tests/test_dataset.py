@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 
@@ -11,7 +10,8 @@ import pytest
 
 from renderloop.dataset.build import build_dataset
 from renderloop.dataset.labels import MIN_SIDE, pepper_boxes, pepper_vertices
-from renderloop.dataset.scenes import DatasetSpec, dataset_scene
+from renderloop.config.dataset import DatasetSpec
+from renderloop.dataset.scenes import dataset_scene
 from renderloop.dataset.views import random_view
 from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
@@ -177,12 +177,10 @@ def test_a_dataset_of_other_settings_is_not_mixed(tmp_path: Path):
     with pytest.raises(UserError, match="other settings"):
         build_dataset(tmp_path, 1, other)
     with pytest.raises(UserError, match="other settings"):
-        build_dataset(tmp_path, 1, dataclasses.replace(TINY, distance=(0.3, 0.65)))
+        build_dataset(tmp_path, 1, TINY.model_copy(update={"distance": (0.3, 0.65)}))
     manifest = tmp_path / "dataset.json"
-    older = {k: v for k, v in json.loads(manifest.read_text()).items() if k != "distance"}
-    manifest.write_text(json.dumps(older))  # a dataset made before views had a range: the default one
-    build_dataset(tmp_path, 1, TINY)
-    manifest.write_text(json.dumps({**older, "format_version": 2}))  # images of an older renderer: not mixed either
+    recorded = json.loads(manifest.read_text())
+    manifest.write_text(json.dumps({**recorded, "format_version": 2}))  # images of another renderer: not mixed either
     with pytest.raises(UserError, match=r"format 2, made by another renderloop \(this one renders format 3"):
         build_dataset(tmp_path, 1, TINY)
     with pytest.raises(UserError, match="--images 0"):

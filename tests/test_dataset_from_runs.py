@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from renderloop.dataset.build import claim_dataset
 from renderloop.dataset.from_runs import dataset_from_runs
 from renderloop.errors import UserError
 from renderloop.perception.scoring import mask_boxes
@@ -50,8 +51,7 @@ def test_runs_without_masks_or_a_rendered_dataset_are_refused_before_anything_is
     assert not out.exists()
     with pytest.raises(UserError, match="--val-runs 1"):
         dataset_from_runs([complete_run], out)
-    rendered = tmp_path / "rendered"
-    rendered.mkdir()
+    rendered = claim_dataset(tmp_path / "rendered")  # a dataset folder `renderloop dataset` made
     (rendered / "dataset.json").write_text('{"seed": 0, "width": 320}')
     with pytest.raises(UserError, match="holds a rendered dataset"):
         dataset_from_runs([complete_run, complete_run], rendered)

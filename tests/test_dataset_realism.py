@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +12,8 @@ import pytest
 from renderloop.dataset.build import build_dataset
 from renderloop.dataset.clutter import PEPPER_CLEARANCE, clutter_objects, standing_boards
 from renderloop.dataset.picked import CRATE_WALL, picked_fruit
-from renderloop.dataset.scenes import HIGHWIRE_HEIGHT, DatasetSpec, dataset_scene
+from renderloop.config.dataset import DatasetSpec
+from renderloop.dataset.scenes import HIGHWIRE_HEIGHT, dataset_scene
 from renderloop.dataset.views import CLOSE_DISTANCE, _through, close_view, picked_view, random_view
 from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
@@ -161,8 +162,8 @@ def test_views_of_picked_fruit_look_down_at_one_from_outside_every_crate_and_kee
 
 
 def test_a_cluttered_dataset_of_close_views_labels_peppers_and_picked_fruit_only(tmp_path: Path):
-    spec = dataclasses.replace(REAL, width=64, height=48, views_per_scene=4, samples=(1,), val_every=2,
-                               styles=("pepper",), environments=("plain",), close=1.0, picked=1.0)
+    spec = REAL.model_copy(update=dict(width=64, height=48, views_per_scene=4, samples=(1,), val_every=2,
+                               styles=("pepper",), environments=("plain",), close=1.0, picked=1.0))
     assert build_dataset(tmp_path, 4, spec) == 4
     _, scene = dataset_scene(spec, 0)
     ids = {pepper.id for pepper in scene.peppers}
@@ -179,23 +180,12 @@ def test_a_cluttered_dataset_of_close_views_labels_peppers_and_picked_fruit_only
     assert manifest["picked"] == 1.0
 
 
-def test_an_older_manifest_without_the_realism_fields_is_the_plain_dataset(tmp_path: Path):
-    tiny = DatasetSpec(seed=3, width=64, height=48, views_per_scene=2, samples=(1,), val_every=2)
-    build_dataset(tmp_path, 1, tiny)
-    manifest = tmp_path / "dataset.json"
-    older = {k: v for k, v in json.loads(manifest.read_text()).items()
-             if k not in ("styles", "environments", "clutter", "close", "picked")} | {"sensor": False}
-    manifest.write_text(json.dumps(older))
-    assert build_dataset(tmp_path, 1, tiny) == 0
-    with pytest.raises(UserError, match="other settings"):
-        build_dataset(tmp_path, 1, dataclasses.replace(tiny, clutter=True))
-
-
 @pytest.mark.parametrize("change, words", [
-    ({"styles": ("fern",)}, "--styles fern"), ({"environments": ()}, "--environments"),
-    ({"styles": ("pepper", "pepper")}, "each once"), ({"close": 1.5}, "--close 1.5"), ({"sensor": -0.1}, "--sensor"),
-    ({"picked": 2.0}, "--picked 2.0: a share of the scenes"),
+    ({"styles": ("fern",)}, "dataset: styles.0: Input should be 'simple', 'pepper' or 'highwire'"),
+    ({"environments": ()}, "dataset: environments: "), ({"styles": ("pepper", "pepper")}, "styles: pepper, pepper: choose each once"),
+    ({"close": 1.5}, "dataset: close: "), ({"sensor": -0.1}, "dataset: sensor: "), ({"picked": 2.0}, "dataset: picked: "),
+    ({"distance": (0.8, 0.4)}, "dataset: distance: near 0.8 m is beyond far 0.4 m"),
 ])
-def test_a_bad_dataset_choice_is_one_line_naming_it(change, words):
-    with pytest.raises(UserError, match=words):
-        DatasetSpec(**change)
+def test_a_bad_dataset_choice_is_one_line_naming_its_field(change, words):
+    with pytest.raises(UserError, match=re.escape(words)):
+        DatasetSpec.of(**change)

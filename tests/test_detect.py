@@ -14,7 +14,7 @@ from conftest import cli, fly_demo_raster, jittered_model
 from renderloop.errors import UserError
 from renderloop.perception.detector import Detector
 from renderloop.perception.fruit_points import CENTRE_BEHIND_SKIN, MAX_RADIUS
-from renderloop.perception.stage import run_detect, with_detector
+from renderloop.perception.stage import run_detect
 from renderloop.perception.threshold import ThresholdScore, choose, score_thresholds, search_run
 from renderloop.perception.training.ssd import export_onnx
 from renderloop.render.camera import read_camera_info
@@ -43,7 +43,7 @@ def rendered(tmp_path_factory) -> Path:
 def test_detections_hold_every_frame_and_points_lie_in_their_boxes(rendered: Path, model: Path, tmp_path: Path):
     run_dir = tmp_path / "run"
     shutil.copytree(rendered, run_dir)
-    assert run_detect(run_dir, with_detector(read_config(run_dir), model=model))
+    assert run_detect(run_dir, read_config(run_dir).override({"detector": {"model": model}}))
     document = json.loads((run_dir / "detections.json").read_text())
     times, poses = read_poses(run_dir)
     assert [f["index"] for f in document["frames"]] == list(range(len(poses)))
@@ -77,15 +77,15 @@ def test_a_bad_frame_stops_detection_and_the_rerun_finishes_the_same(rendered: P
     clean, broken = tmp_path / "clean", tmp_path / "broken"
     shutil.copytree(rendered, clean)
     shutil.copytree(rendered, broken)
-    run_detect(clean, with_detector(read_config(clean), model=model))
+    run_detect(clean, read_config(clean).override({"detector": {"model": model}}))
     frame = broken / "rgb" / "000002.png"
     good = frame.read_bytes()
     frame.write_bytes(good[:100])
     with pytest.raises(UserError, match="000002.png: not a readable PNG"):
-        run_detect(broken, with_detector(read_config(broken), model=model))
+        run_detect(broken, read_config(broken).override({"detector": {"model": model}}))
     assert len((broken / CACHE).read_text().splitlines()) == 2 and not (broken / "detections.json").exists()
     frame.write_bytes(good)
-    run_detect(broken, with_detector(read_config(broken), model=model))
+    run_detect(broken, read_config(broken).override({"detector": {"model": model}}))
     assert (broken / "detections.json").read_bytes() == (clean / "detections.json").read_bytes()
 
 
@@ -96,7 +96,7 @@ def test_depth_of_another_size_is_refused(rendered: Path, model: Path, tmp_path:
 
     Image.fromarray(np.zeros((10, 12), np.uint16)).save(run_dir / "depth_sensor" / "000000.png")
     with pytest.raises(UserError, match="000000.png: depth is 12x10 but the RGB frame is 320x240"):
-        run_detect(run_dir, with_detector(read_config(run_dir), model=model))
+        run_detect(run_dir, read_config(run_dir).override({"detector": {"model": model}}))
 
 
 def test_photo_folders(rendered: Path, model: Path, tmp_path: Path, monkeypatch, capsys):
@@ -144,7 +144,7 @@ def test_a_threshold_scored_from_one_search_is_what_detect_gives_at_it(rendered:
     searched = search_run(run_dir, Detector(model), settings)
     for threshold in (0.3, 0.5):
         config = read_config(run_dir).override({"detector": {"score_threshold": threshold}})
-        run_detect(run_dir, with_detector(config, model=model), force=True)
+        run_detect(run_dir, config.override({"detector": {"model": model}}), force=True)
         truth = json.loads((run_dir / "detection_scores.json").read_text())
         (score,) = score_thresholds([searched], [threshold])
         assert score.detections > 0

@@ -44,8 +44,6 @@ READERS: dict[str, Reader] = {
     names.FLIGHT: files.read_flight,
     names.POSES: files.read_poses,
     names.CAMERA_INFO: read_camera_info,
-    names.frames_index(names.RGB): lambda run: files.read_frames_index(run, names.RGB),
-    names.frames_index(names.DEPTH): lambda run: files.read_frames_index(run, names.DEPTH),
     names.DETECTIONS: lambda run: files.read_detections(run, len(files.read_poses(run)[0])),
     names.DETECTION_SCORES: files.read_detection_scores,
     names.COUNTS: files.read_counts,

@@ -102,6 +102,14 @@ def test_no_module_imports_a_package_above_its_own_or_beside_it():
     assert not wrong, "\n".join(wrong)
 
 
+def test_a_packages_stage_module_is_imported_by_none_of_its_own_modules():
+    """A stage's `stage.py` is its file handling, on top of its package: the package's other modules hold the work it
+    calls and never reach back for anything of it."""
+    wrong = [f"{module}:{line} imports {imported}" for module, line, imported in _graph()
+             if imported.endswith(".stage") and imported != module and imported.rsplit(".", 1)[0] == module.rsplit(".", 1)[0]]
+    assert not wrong, "\n".join(wrong)
+
+
 def test_the_graph_sees_function_level_imports_and_skips_type_checking_ones():
     tree = ast.parse("from __future__ import annotations\nfrom typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
                      "    from renderloop.cli import main\ndef f():\n    from . import names\n    import renderloop.loop\n")

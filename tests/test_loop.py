@@ -121,15 +121,15 @@ def test_a_raster_frame_reads_its_images_as_its_files_hold_them_and_a_released_f
 def test_perception_on_its_own_thread_feeds_the_counter_what_perception_in_line_does(flown: Path, monkeypatch):
     """Frames submitted faster than the thread perceives them (at most MAX_PERCEIVING wait) and collected whenever:
     the same detections, in frame order, and the same counts as each frame perceived at once."""
-    from renderloop.loop import stage
-    from renderloop.loop.stage import OnlinePerception
+    from renderloop.loop import perceive
+    from renderloop.loop.perceive import OnlinePerception
 
-    monkeypatch.setattr(stage, "MAX_PERCEIVING", 2)
+    monkeypatch.setattr(perceive, "MAX_PERCEIVING", 2)
     config = files.read_config(flown)
     with Simulation(config, flown) as sim:
         sim.follow(sim.scan_trajectory())
         camera = sim.add_camera(rate_hz=5.0, backend="raster")
-        sim.run_until(2.0)
+        sim.run_until(6.0)  # the first seconds of the scan reach the plants
         frames = camera.frames_until(sim.t)
         in_line = OnlinePerception(config, OnlineCounter(sim.scene, config.counting, config.seed))
         for frame in frames:
@@ -141,8 +141,8 @@ def test_perception_on_its_own_thread_feeds_the_counter_what_perception_in_line_
                 if k % 3 == 2:
                     threaded.collect(wait=False)
             threaded.collect(wait=True)
-    assert len(frames) == 10 and any(found.detections for found in in_line.frames)
-    assert [found.index for found in threaded.frames] == list(range(10))
+    assert len(frames) == 30 and any(found.detections for found in in_line.frames)
+    assert [found.index for found in threaded.frames] == list(range(30))
     assert threaded.frames == in_line.frames
     assert threaded.counter.counts().per_plant() == in_line.counter.counts().per_plant()
 

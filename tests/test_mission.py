@@ -21,12 +21,12 @@ from renderloop.rundir import files, names
 from renderloop.io.ownership import BOOKKEEPING
 from renderloop.scene.model import read_scene
 
-# Two plants on the demo table, raster frames, a first pass every 4 s and one round of two views: a mission in seconds
+# Two plants on the demo table, raster frames, a first pass every 5 s and one round of two views: a mission in seconds
 # (and a static scan at 0.5 Hz beside it). A cautious prior on the unseen canopy keeps every plant open after the first
 # pass, so that the mission looks again.
 SMALL = {"renderer": {"backend": "raster"}, "greenhouse": {"plants_per_table": 2}, "camera": {"rate_hz": 0.5},
          "counting": {"interval": {"hidden_unseen": 4.0}},
-         "mission": {"kind": "adaptive", "adaptive": {"first_pass_rate_hz": 0.25, "views_per_round": 2, "rounds": 1}}}
+         "mission": {"kind": "adaptive", "adaptive": {"first_pass_rate_hz": 0.2, "views_per_round": 2, "rounds": 1}}}
 
 
 def _config(**adaptive: float) -> Config:
@@ -52,7 +52,7 @@ def test_the_mission_looks_again_at_uncertain_plants_from_the_views_it_logs(adap
     times, poses = files.read_poses(adaptive_run)
     counts = files.read_counts(adaptive_run)
     views = [(plant, view) for plant in mission.plants for r in plant.rounds for view in r.views]
-    assert views, "the first pass at 0.25 Hz leaves plants uncertain: the mission must look again"
+    assert views, "the first pass at 0.2 Hz leaves plants uncertain: the mission must look again"
     assert mission.frames == len(times) == counts.detections.frames
     assert mission.first_pass_frames == mission.frames - len(views)
     for plant, view in views:
@@ -182,7 +182,7 @@ def test_eval_puts_both_missions_side_by_side_and_the_mission_is_the_same_for_a_
     assert "| 0 | static |" in stdout and "| 0 | adaptive |" in stdout and "adaptive: mean absolute error" in stdout
     assert _contract(out / "seed_0_adaptive") == _contract(adaptive_run)  # flown again, frame for frame the same
     code, _, err = cli(monkeypatch, capsys, "eval", "--seeds", "0", "--mission", "greedy", "--out", str(tmp_path / "bad"))
-    assert code == 2 and "mission.kind" in err and len(err.strip().splitlines()) == 1
+    assert code == 2 and "--mission greedy: choose from static, adaptive" in err and len(err.strip().splitlines()) == 1
 
 
 def test_the_camera_takes_a_frame_at_each_trigger_and_none_periodic_while_paused(tmp_path: Path):

@@ -12,9 +12,21 @@ from scipy.spatial.transform import Rotation
 
 from renderloop.config import Config, SensorConfig, load_config
 from renderloop.render.camera import Intrinsics
-from renderloop.render.motion import FlownStates, exposure_poses, exposure_time, frames_motion, stored
-from renderloop.render.sensor import srgb_to_linear
-from renderloop.robot.kinematics import camera_pose, camera_rotation, homogeneous, look_at, rot_z
+from renderloop.render.motion import (
+    FlownStates,
+    exposure_poses,
+    exposure_time,
+    frames_motion,
+    stored,
+)
+from renderloop.render.srgb import decode_u8
+from renderloop.robot.kinematics import (
+    camera_pose,
+    camera_rotation,
+    homogeneous,
+    look_at,
+    rot_z,
+)
 from renderloop.scene import meshes
 
 ARM = Config().robot.arm
@@ -120,7 +132,7 @@ def _spread(profile: np.ndarray) -> float:
 def _spreads(rgb: np.ndarray, box: tuple[int, int, int, int]) -> tuple[float, float]:
     """Spread of the square's edges along image x (the motion) and along image y (across it): each profile a mean
     over the square's inner rows or columns, within a margin of 12 px about it, in linear light (where blur adds)."""
-    grey = srgb_to_linear(rgb).mean(axis=2)
+    grey = decode_u8(rgb).mean(axis=2)
     top, bottom, left, right = box
     height, width = grey.shape
     rows, cols = slice(max(top - 12, 0), min(bottom + 13, height)), slice(max(left - 12, 0), min(right + 13, width))
@@ -141,7 +153,7 @@ def test_a_camera_moving_fast_sideways_blurs_the_sensor_frame_along_its_motion(s
     assert sharp_along < 2.5 and sharp_across < 2.5
     assert 0.6 * ramp < along < 1.5 * ramp  # the square's left and right edges are ramps as long as the motion
     assert across < 2.5  # its top and bottom edges stay sharp
-    assert abs(srgb_to_linear(blurred).mean() / srgb_to_linear(ideal).mean() - 1) < 0.05  # light spread, not lost
+    assert abs(decode_u8(blurred).mean() / decode_u8(ideal).mean() - 1) < 0.05  # light spread, not lost
 
 
 def test_a_camera_at_rest_gives_the_unblurred_frame_and_blurring_leaves_the_next_frame_alone(square):
@@ -160,7 +172,6 @@ def test_a_camera_at_rest_gives_the_unblurred_frame_and_blurring_leaves_the_next
 
 def test_the_sensor_being_on_leaves_the_ideal_colour_depth_and_masks_unchanged():
     from renderloop.render.executor import FrameWorker, blurs_motion
-    from renderloop.render.stage import with_backend
     from renderloop.rundir import names
     from renderloop.scene.generate import generate_scene
 
@@ -172,7 +183,7 @@ def test_the_sensor_being_on_leaves_the_ideal_colour_depth_and_masks_unchanged()
     moved = pose.copy()
     moved[:3, 3] += pose[:3, 0] * 0.05
     sensor = config.override({"camera": {"sensor": SensorConfig(enabled=True)}})
-    assert blurs_motion(sensor) and not blurs_motion(with_backend(sensor, "raster")) and not blurs_motion(config)
+    assert blurs_motion(sensor) and not blurs_motion(sensor.override({"renderer": {"backend": "raster"}})) and not blurs_motion(config)
     worker = FrameWorker(sensor, scene)
     try:
         worker.render_pose(0, moved, np.array([pose, moved]))  # a blurred frame before, as in a worker's stream
@@ -188,20 +199,6 @@ def test_the_sensor_being_on_leaves_the_ideal_colour_depth_and_masks_unchanged()
     for stream in (names.RGB, names.DEPTH, names.MASKS):
         assert on[stream] == off[stream], stream
     assert math.isfinite(timings["motion_blur"])
-
-
-@pytest.mark.parametrize(("backend", "enabled", "same"), [("cycles", False, True), ("raster", True, True), ("cycles", True, False)])
-def test_a_record_from_before_motion_blur_stands_where_blur_would_not_have_changed_the_frames(tmp_path, backend, enabled, same):
-    """Frames rendered before exposure_time existed stay current unless they were Cycles sensor frames (now blurred)."""
-    from renderloop.render.stage import _recorded
-    from renderloop.rundir import files, names
-    from renderloop.rundir.models import RenderRecord
-
-    camera = _tiny_config().override({"camera": {"sensor": SensorConfig(enabled=enabled)}}).camera.model_dump(mode="json")
-    today = RenderRecord(backend=backend, frames=3, poses_sha256="p", scene_sha256="s", seed=1, camera=camera, renderer={"bounces": {}, "raster": {}})
-    before = {**camera, "sensor": {key: value for key, value in camera["sensor"].items() if key != "exposure_time"}}
-    files.write_model(tmp_path / names.RENDER_RECORD, today.model_copy(update={"camera": before}))
-    assert (_recorded(tmp_path) == today) is same
 
 
 def test_the_shutter_poses_are_the_same_bits_wherever_the_flown_states_lie_in_memory():

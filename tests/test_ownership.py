@@ -108,16 +108,16 @@ def test_a_file_at_one_of_our_names_that_we_did_not_write_is_not_replaced(comple
     assert (run / "report.html").read_text() == "the user's own page"
 
 
-def test_a_run_from_before_the_mark_is_adopted_with_every_file_its_own(complete_run: Path, tmp_path: Path,
-                                                                        monkeypatch, capsys):
+def test_a_run_without_the_mark_is_refused_whatever_files_it_holds(complete_run: Path, tmp_path: Path,
+                                                                   monkeypatch, capsys):
+    """Only a marked directory is ours: one with our files and no mark is the user's copy, never adopted."""
     run = tmp_path / "run"
     shutil.copytree(complete_run, run)
     for name in ownership.BOOKKEEPING:
         (run / name).unlink()
     code, _, stderr = cli(monkeypatch, capsys, "count", str(run), "--force")
-    assert code == 0, stderr
-    assert ownership.read_mark(run).kind == ownership.RUN
-    assert {"scene.json", frame_file("rgb", 0), "counts.json"} <= set(ownership.read_ledger(run))
+    assert code == 2 and "not empty and not made by renderloop" in stderr and stderr.count("\n") == 1
+    assert ownership.read_mark(run) is None and not (run / ownership.LEDGER).exists()
 
 
 def test_a_directory_of_another_kind_or_a_newer_format_is_refused(tmp_path: Path):

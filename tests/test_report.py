@@ -8,7 +8,10 @@ here. Only a machine without chromium skips (scripts/setup.sh installs it).
 
 from __future__ import annotations
 
+import base64
+import io
 import json
+import math
 import re
 import shutil
 from dataclasses import dataclass
@@ -21,9 +24,12 @@ from PIL import Image
 
 from conftest import cli
 from renderloop.render.camera import read_camera_info
+from renderloop.render.frames import decode_depth, read_png
+from renderloop.report.frames import DepthScale
 from renderloop.report.html import build_report, write_report
 from renderloop.report.view3d import greenhouse_figure
-from renderloop.report.words import signed_pct
+from renderloop.report.words import recall_sentence, signed_pct
+from renderloop.rundir import names
 from renderloop.rundir import files
 from renderloop.scene.model import read_scene
 
@@ -32,6 +38,7 @@ LAUNCH_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking
                "--no-first-run"]
 FAST = {"renderer": {"backend": "raster"}, "camera": {"rate_hz": 0.25}}
 PATH_COLOR = (0x1F, 0x3B, 0x73)  # the flown path in the 3D view (report/view3d.py)
+MAX_BYTES = 2_000_000  # the demo run's report.html
 
 
 def _near(image: Image.Image, color: tuple[int, int, int], tolerance: int = 12) -> int:
@@ -153,7 +160,77 @@ def test_the_same_files_give_the_same_page(complete_run: Path):
     page = build_report(complete_run)
     assert page == build_report(complete_run)
     plotly_js = max(re.findall(r"<script[^>]*>(.*?)</script>", page, flags=re.S), key=len)
-    assert len(page) - len(plotly_js) < 1_500_000, "the report's own content (images, 3D data) grew past 1.5 MB"
+    assert len(page) - len(plotly_js) < 1_200_000, "the report's own content (images, 3D data) grew past 1.2 MB"
+
+
+def test_the_demo_report_with_plotly_inlined_is_at_most_2_mb(report: Path):
+    page = report.read_text(encoding="utf-8")
+    assert report.stat().st_size <= MAX_BYTES, f"report.html is {report.stat().st_size / 1e6:.2f} MB"
+    assert "cdn.plot.ly" not in page and "<script src=" not in page  # all of plotly.js is inside the page
+
+
+def test_every_depth_image_is_coloured_on_the_one_scale_the_page_states(opened: Opened, complete_run: Path):
+    page = opened.page
+    assert page.locator(".depthscale").count() == 1
+    near, far = (float(page.locator(".depthscale").get_attribute(key)) for key in ("data-near", "data-far"))
+    assert f"{near:.1f} m to {far:.1f} m" in page.locator("#frames").inner_text()
+    scale = DepthScale(near, far)
+    images = page.evaluate("[...document.querySelectorAll('#frames img.depth')].map(i => [i.dataset.frame, i.src])")
+    assert len(images) >= 2
+    fruit_depth = []
+    for frame, uri in images:
+        depth = decode_depth(read_png(complete_run / names.frame_file(names.DEPTH, int(frame)), np.uint16))
+        drawn = np.asarray(Image.open(io.BytesIO(base64.b64decode(uri.split(",", 1)[1]))).convert("RGB"))
+        assert np.array_equal(drawn, scale.colour(depth)), f"frame {frame} is not drawn on the page's scale"
+        mask = read_png(complete_run / names.frame_file(names.MASKS, int(frame)), np.uint16)
+        fruit_depth.append(depth[(mask > 0) & (depth > 0)])
+    # the scale spans the fruit the frames show: most of them get a colour of their own, not the far grey
+    fruit = np.concatenate(fruit_depth)
+    assert np.mean((fruit >= near) & (fruit <= far)) > 0.95
+
+
+def test_the_recall_sentence_uses_the_run_s_numbers(complete_run: Path):
+    scores = files.read_detection_scores(complete_run)
+    counts = files.read_counts(complete_run)
+    page = build_report(complete_run)
+    sentence = recall_sentence(scores, counts)
+    assert sentence in page.replace("&#x27;", "'")
+    t = counts.total
+    assert (f"found the fruit in {scores.ripe_found} of those {scores.ripe_findable} views "
+            f"({100 * scores.ripe_found / scores.ripe_findable:.0f} %)") in sentence
+    assert f"here {t.estimate} estimated against {t.truth} true" in sentence
+    assert f"found in {counts.settings['min_views']} or more of its views" in sentence
+    other = recall_sentence(scores.model_copy(update={"ripe_found": 412, "ripe_findable": 543}),
+                            counts.model_copy(update={"total": t.model_copy(update={"estimate": 14})}))
+    assert "found the fruit in 412 of those 543 views (76 %)" in other and f"here 14 estimated against {t.truth} true" in other
+
+
+def test_the_3d_view_opens_on_the_plants_with_the_legend_clear_of_the_toolbar(opened: Opened, complete_run: Path):
+    page = opened.page
+    page.locator("#greenhouse-3d").hover()  # the toolbar shows on hover
+    legend = page.locator("#greenhouse-3d g.legend").bounding_box()
+    toolbar = page.locator("#greenhouse-3d .modebar").bounding_box()
+    assert legend and toolbar and toolbar["width"] > 0
+    apart = (legend["x"] + legend["width"] <= toolbar["x"] or toolbar["x"] + toolbar["width"] <= legend["x"]
+             or legend["y"] + legend["height"] <= toolbar["y"] or toolbar["y"] + toolbar["height"] <= legend["y"])
+    assert apart, (legend, toolbar)
+
+    scene = read_scene(complete_run)
+    times, poses = files.read_poses(complete_run)
+    figure = greenhouse_figure(scene, files.read_counts(complete_run), files.read_detections(complete_run, len(poses)),
+                               files.read_flight(complete_run), times, poses, read_camera_info(complete_run))
+    layout = figure.layout.scene
+    low = np.array([axis.range[0] for axis in (layout.xaxis, layout.yaxis, layout.zaxis)])
+    high = np.array([axis.range[1] for axis in (layout.xaxis, layout.yaxis, layout.zaxis)])
+    ratio = np.array([layout.aspectratio[a] for a in "xyz"])
+    plants = np.array([[p.bounds.min, p.bounds.max] for p in scene.plants]).reshape(-1, 3)
+    box = [(point - (low + high) / 2) / (high - low) * ratio for point in (plants.min(axis=0), plants.max(axis=0))]
+    centre = np.array([layout.camera.center[a] for a in "xyz"])
+    eye = np.array([layout.camera.eye[a] for a in "xyz"])
+    assert np.allclose(centre, (box[0] + box[1]) / 2, atol=2e-3), "the view does not look at the plants"
+    # plotly draws 45 degrees high: the plants' bounding sphere fills between a half and all of it
+    half_angle = math.degrees(math.asin(min(1.0, np.linalg.norm(box[1] - box[0]) / 2 / np.linalg.norm(eye - centre))))
+    assert 11 < half_angle < 30, half_angle
 
 
 def test_a_run_without_masks_still_gets_its_cards_and_says_what_it_cannot_know(complete_run: Path, tmp_path: Path):

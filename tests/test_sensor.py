@@ -10,7 +10,8 @@ import numpy as np
 
 from renderloop.config import SensorConfig
 from renderloop.perception.stage import run_detect
-from renderloop.render.sensor import linear_to_srgb, metered, sensor_rgb, srgb_to_linear
+from renderloop.render.sensor import metered, sensor_rgb
+from renderloop.render.srgb import decode_u8, encode_u8
 from renderloop.render.stage import run_render
 from renderloop.rundir import files, names
 
@@ -21,7 +22,7 @@ IDEAL = SensorConfig(enabled=True, exposure_target=(0.18, 0.18), gain=(1.0, 1.0)
 
 
 def _flat(linear: float, shape=(60, 80)) -> np.ndarray:
-    return np.full((*shape, 3), linear_to_srgb(np.array(linear))[()], dtype=np.uint8)
+    return np.full((*shape, 3), encode_u8(np.array(linear))[()], dtype=np.uint8)
 
 
 def _depth(shape=(60, 80)) -> np.ndarray:
@@ -36,14 +37,14 @@ def test_a_sensor_with_every_effect_at_zero_delivers_the_ideal_frame():
 def test_auto_exposure_brings_a_dark_frame_up_to_its_target_within_its_gain():
     dark = _flat(0.02)
     exposed = sensor_rgb(dark, _depth(), IDEAL.model_copy(update={"gain": (0.5, 16.0)}), np.random.default_rng(0))
-    assert abs(metered(srgb_to_linear(exposed)) - 0.18) < 0.01
+    assert abs(metered(decode_u8(exposed)) - 0.18) < 0.01
     capped = sensor_rgb(dark, _depth(), IDEAL.model_copy(update={"gain": (0.5, 2.0)}), np.random.default_rng(0))
-    assert metered(srgb_to_linear(capped)) < 0.05  # the gain it may not exceed leaves it dark
+    assert metered(decode_u8(capped)) < 0.05  # the gain it may not exceed leaves it dark
 
 
 def test_a_misjudged_colour_temperature_turns_a_grey_frame_warm_or_cool_and_leaves_green_alone():
     grey = _flat(0.18)
-    warm, cool = (srgb_to_linear(sensor_rgb(grey, _depth(), IDEAL.model_copy(update={"white_balance_warmth": (w, w)}),
+    warm, cool = (decode_u8(sensor_rgb(grey, _depth(), IDEAL.model_copy(update={"white_balance_warmth": (w, w)}),
                                             np.random.default_rng(0))).mean(axis=(0, 1)) for w in (0.4, -0.4))
     assert warm[0] > 1.15 * warm[1] > 1.15 * warm[2]
     assert cool[2] > 1.15 * cool[1] > 1.15 * cool[0]
@@ -52,15 +53,15 @@ def test_a_misjudged_colour_temperature_turns_a_grey_frame_warm_or_cool_and_leav
 
 def test_the_gain_makes_dark_regions_noisier_than_bright_ones():
     noisy = IDEAL.model_copy(update={"gain": (0.5, 16.0), "shot_noise": (0.002, 0.002), "read_noise": (0.002, 0.002)})
-    dark = srgb_to_linear(sensor_rgb(_flat(0.015), _depth(), noisy, np.random.default_rng(0)))
-    bright = srgb_to_linear(sensor_rgb(_flat(0.18), _depth(), noisy, np.random.default_rng(0)))
+    dark = decode_u8(sensor_rgb(_flat(0.015), _depth(), noisy, np.random.default_rng(0)))
+    bright = decode_u8(sensor_rgb(_flat(0.18), _depth(), noisy, np.random.default_rng(0)))
     assert abs(dark.mean() - bright.mean()) < 0.02  # both exposed to the same level
     assert dark.std() > 2 * bright.std()
 
 
 def test_vignetting_darkens_the_corners_and_the_draws_repeat_with_the_seed():
     vignetted = IDEAL.model_copy(update={"vignetting": (0.3, 0.3)})
-    out = srgb_to_linear(sensor_rgb(_flat(0.18), _depth(), vignetted, np.random.default_rng(0)))
+    out = decode_u8(sensor_rgb(_flat(0.18), _depth(), vignetted, np.random.default_rng(0)))
     assert out[0, 0].mean() < 0.8 * out[30, 40].mean()
     settings = SensorConfig(enabled=True)
     rgb = (np.random.default_rng(3).random((60, 80, 3)) * 255).astype(np.uint8)

@@ -7,8 +7,9 @@ failure such as a full disk or a read-only directory in one line and exit code 1
 from __future__ import annotations
 
 import json
+import shutil
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Annotated, Any
@@ -17,20 +18,85 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from typer.exceptions import Abort as TyperAbort
+from typer.core import TyperCommand, TyperGroup
 from typer.exceptions import TyperException
 
 from renderloop import __version__
-from renderloop.config import PRESETS, Config, DetectorConfig, config_schema, load_config
+from renderloop import parallel
+from renderloop.config import PRESETS, Config, DetectorConfig, MissionConfig, RendererConfig, choices, config_schema, load_config
 from renderloop.config.fields import checked
 from renderloop.config.training import BACKBONES, DEFAULT_BACKBONE, TrainSettings
-from renderloop.dataset.scenes import DatasetSpec
-from renderloop.errors import UserError
+from renderloop.config.training import DEVICES as TRAIN_DEVICES
+from renderloop.config.dataset import DatasetSpec
+from renderloop.errors import UserError, did_you_mean
 from renderloop.io.atomic import final_path
+from renderloop.perception.detector import CLASSES
 
 # Each command imports the stages it runs inside its own body: `renderloop fly` has no use for the detector,
 # scikit-learn or Ray, and importing them would be a large part of its time.
 
-app = typer.Typer(
+def _choice_metavar(values: Sequence[str], several: bool = False) -> str:
+    """How help shows an option of a fixed set of values: [raster|cycles], or [static|adaptive],... for a list."""
+    return f"[{'|'.join(values)}]" + (",..." if several else "")
+
+
+def _readable(param: Any) -> None:
+    """A parameter as help and usage lines show it: a flag takes no value and shows none (not `<bool>`), an argument
+    shows its name in capitals (RUN_DIR); an option's type (`<path>`, or its choices, see `Choice`) stays."""
+    if getattr(param, "is_flag", False):
+        param.metavar = ""
+    elif param.param_type_name == "argument" and param.metavar is None:
+        param.metavar = param.name.upper() + ("..." if param.nargs != 1 else "")
+
+
+class _Readable:
+    """A command whose parameters read as the command is typed (see `_readable`)."""
+
+    def get_params(self, ctx: Any) -> list:
+        params = super().get_params(ctx)  # type: ignore[misc]  # the --help option joins here
+        for param in params:
+            _readable(param)
+        return params
+
+
+class _Command(_Readable, TyperCommand):
+    def collect_usage_pieces(self, ctx: Any) -> list[str]:
+        """`[OPTIONS] RUN_DIR`, an optional argument in brackets: click's own braces read as a literal `{run_dir}`."""
+        pieces = [self.options_metavar] if self.options_metavar else []
+        for param in self.get_params(ctx):
+            if param.param_type_name == "argument":
+                pieces.append(param.metavar if param.required else f"[{param.metavar}]")
+        return pieces
+
+
+class _Group(_Readable, TyperGroup):
+    """The root command, whose --version and --help are flags too."""
+
+
+class _Typer(typer.Typer):
+    """Every verb is a `_Command` unless it names its own class."""
+
+    def command(self, *args: Any, cls: type[TyperCommand] | None = None, **kwargs: Any) -> Callable:
+        return super().command(*args, cls=cls or _Command, **kwargs)
+
+
+def Choice(values: Sequence[str], help: str, *decls: str, several: bool = False, check: bool = True, **kwargs: Any) -> Any:
+    """An option of one of `values` (comma-separated values with `several`): its help shows them, and a value not among
+    them is refused before the verb starts, naming the option, the values and the closest one: `--mission adaptiv:
+    choose from static, adaptive; did you mean adaptive?`. `check=False` leaves the refusal to the code that reads it."""
+    def refuse_unknown(ctx: Any, param: Any, value: str | None) -> str | None:
+        if value is None or not check or ctx.resilient_parsing:
+            return value
+        for name in _names(value) if several else (value,):
+            if name not in values:
+                raise UserError(f"{param.opts[0]} {value}: choose from {', '.join(values)}{did_you_mean(name, values)}")
+        return value
+
+    return typer.Option(*decls, help=help, metavar=_choice_metavar(values, several), callback=refuse_unknown, **kwargs)
+
+
+app = _Typer(
+    cls=_Group,
     name="renderloop",
     help="Render-in-the-loop aerial robotics simulator: sweet-pepper yield estimation in a greenhouse.",
     no_args_is_help=True,
@@ -38,14 +104,16 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-Preset = Annotated[str, typer.Option(help=f"Config preset: {', '.join(PRESETS)}.")]
+# load_config refuses an unknown preset itself, with the sentence the Python API gives
+Preset = Annotated[str, Choice(PRESETS, "Config preset; --config's fields go over it.", check=False)]
 ConfigFile = Annotated[Path | None, typer.Option("--config", help="YAML file whose fields override the preset.")]
 Seed = Annotated[int | None, typer.Option(help="Seed of every random choice (overrides the config's).")]
 Out = Annotated[Path, typer.Option(help="Run directory to write into.")]
 Force = Annotated[bool, typer.Option("--force", help="Redo stages whose outputs already exist.")]
-MissionKind = Annotated[str | None, typer.Option(
-    "--mission", help="static: the planned scan; adaptive: a coarse pass, then re-scans where the count is uncertain "
-    "(mission.kind).")]
+MISSIONS = choices(MissionConfig, "kind")
+MissionKind = Annotated[str | None, Choice(
+    MISSIONS, "static: the planned scan; adaptive: a coarse pass, then re-scans where the count is uncertain (mission.kind).",
+    "--mission")]
 RunDir = Annotated[Path, typer.Argument(help="Run directory made by `renderloop scene`.", show_default=False)]
 Windows = Annotated[str | None, typer.Option(help="Also search the windows of these columns x rows layouts of each image, "
                                              "e.g. 2x2,3x2; none: whole images only; default: the config's (2x2,3x2).")]
@@ -122,14 +190,15 @@ def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
 
 
 Workers = Annotated[int, typer.Option(min=1, max=256, help="Renderer processes (one scene each).")]
-Executor = Annotated[str, typer.Option(help="local processes, or ray tasks on a Ray cluster.")]
+Executor = Annotated[str, Choice(choices(parallel.Executor, "kind"), "local processes, or ray tasks on a Ray cluster.")]
 Address = Annotated[str | None, typer.Option(help="Ray cluster address (with --executor ray); default: start a local one.")]
 
 
 @app.command()
 def render(
     run_dir: RunDir,
-    backend: Annotated[str | None, typer.Option(help="cycles (photo-realistic) or raster (MuJoCo, fast); default: the config's.")] = None,
+    backend: Annotated[str | None, Choice(choices(RendererConfig, "backend"), "cycles (photo-realistic) or raster (MuJoCo, fast); "
+                                          "default: the config's.")] = None,
     workers: Workers = 1,
     executor: Executor = "local",
     address: Address = None,
@@ -137,32 +206,39 @@ def render(
 ) -> None:
     """Render RGB, depth (planar, uint16 at 5000 per metre) and pepper instance masks at every pose of groundtruth.txt."""
     from renderloop.parallel import Executor as Parallel
-    from renderloop.render.stage import run_render, with_backend
+    from renderloop.render.stage import run_render
     from renderloop.rundir.files import read_config
 
-    config = with_backend(read_config(run_dir), backend)
+    config = read_config(run_dir)
+    if backend is not None:
+        config = config.override({"renderer": {"backend": backend}}, f"unknown backend {backend!r}")
     with _progress_bar("render") as progress:
         made = run_render(run_dir, config, force, progress, Parallel.of(executor, workers, address))
     typer.echo(f"render: {'wrote' if made else 'already complete in'} {run_dir}")
+
+
+def _spec_option(name: str, flag: str | None = None) -> Any:
+    """The `dataset` option of a DatasetSpec field: the model's description and default; a value not given (None) is
+    the model's default, and the model checks the range of one given."""
+    field = DatasetSpec.model_fields[name]
+    default = ",".join(field.default) if name in ("styles", "environments") else field.default
+    return typer.Option(*((flag,) if flag else ()), help=f"{field.description} Default: {default}.", show_default=False)
 
 
 @app.command()
 def dataset(
     out: Annotated[Path, typer.Option(help="Dataset folder (images/, labels/, annotations/).")],
     images: Annotated[int, typer.Option(min=1, max=10_000_000, help="Images in the dataset; more than it has adds to it.")],
-    seed: Annotated[int, typer.Option(min=0, help="Seed of the scenes and views.")] = 0,
-    views_per_scene: Annotated[int, typer.Option(min=1, max=1000, help="Views rendered from each random scene.")] = DatasetSpec.views_per_scene,
-    width: Annotated[int, typer.Option(min=16, max=4096, help="Image width, px (height: 3/4 of it).")] = DatasetSpec.width,
-    distance: Annotated[tuple[float, float], typer.Option(help="Near and far camera distance from the plant axis, m.")] = DatasetSpec.distance,
-    sensor: Annotated[float, typer.Option(min=0.0, max=1.0, help="Share of the views through the colour-sensor model "
-                                          "(exposure, white balance, noise, vignetting, defocus, sharpening, JPEG), drawn at random.")] = DatasetSpec.sensor,
-    styles: Annotated[str, typer.Option(help="Plant styles the scenes draw from, comma-separated: simple, pepper, highwire.")] = "simple",
-    environments: Annotated[str, typer.Option(help="Surroundings the scenes draw from, comma-separated: plain, film.")] = "plain",
-    clutter: Annotated[bool, typer.Option("--clutter/--no-clutter", help="Things that are not peppers in every scene: "
-                                          "fruit-like shapes, cans, cartons, patterned mats and boards.")] = DatasetSpec.clutter,
-    close: Annotated[float, typer.Option(min=0.0, max=1.0, help="Share of the views of one fruit from 0.12-0.5 m.")] = DatasetSpec.close,
-    picked: Annotated[float, typer.Option(min=0.0, max=1.0, help="Share of the scenes with crates and loose picked fruit, "
-                                          "labelled; half their close views look at one.")] = DatasetSpec.picked,
+    seed: Annotated[int | None, _spec_option("seed")] = None,
+    views_per_scene: Annotated[int | None, _spec_option("views_per_scene")] = None,
+    width: Annotated[int | None, _spec_option("width")] = None,
+    distance: Annotated[tuple[float, float] | None, _spec_option("distance")] = None,
+    sensor: Annotated[float | None, _spec_option("sensor")] = None,
+    styles: Annotated[str | None, _spec_option("styles")] = None,
+    environments: Annotated[str | None, _spec_option("environments")] = None,
+    clutter: Annotated[bool | None, _spec_option("clutter", "--clutter/--no-clutter")] = None,
+    close: Annotated[float | None, _spec_option("close")] = None,
+    picked: Annotated[float | None, _spec_option("picked")] = None,
     workers: Workers = 1,
     executor: Executor = "local",
     address: Address = None,
@@ -172,9 +248,11 @@ def dataset(
     from renderloop.dataset.build import build_dataset
     from renderloop.parallel import Executor as Parallel
 
-    spec = DatasetSpec(seed=seed, width=width, height=width * 3 // 4, views_per_scene=views_per_scene, distance=distance,
-                       sensor=sensor, styles=_names(styles), environments=_names(environments), clutter=clutter, close=close,
-                       picked=picked)
+    given = {"seed": seed, "views_per_scene": views_per_scene, "width": width, "height": None if width is None else width * 3 // 4,
+             "distance": distance, "sensor": sensor, "styles": None if styles is None else _names(styles),
+             "environments": None if environments is None else _names(environments), "clutter": clutter, "close": close,
+             "picked": picked}
+    spec = DatasetSpec.of(**{name: value for name, value in given.items() if value is not None})
     with _progress_bar("dataset") as progress:
         made = build_dataset(out, images, spec, Parallel.of(executor, workers, address), force, progress)
     typer.echo(f"dataset: rendered {made} images, {images} in {out}")
@@ -213,17 +291,17 @@ def train(
     learning_rate: Annotated[float | None, _setting("learning_rate")] = None,
     warmup_steps: Annotated[int | None, _setting("warmup_steps")] = None,
     seed: Annotated[int | None, _setting("seed")] = None,
-    device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "auto",
+    device: Annotated[str, Choice(TRAIN_DEVICES, "Where to train; auto: cuda when there is one.")] = "auto",
     loader_workers: Annotated[int, typer.Option(min=0, max=64, help="Data-loading processes.")] = 1,
     init: Annotated[Path | None, typer.Option(help="Start from these weights (fine-tuning): an earlier run's .ckpt, a "
                                               "renderloop ONNX detector, or 'shipped' for the model in the package.")] = None,
-    backbone: Annotated[str | None, typer.Option(help=f"{TrainSettings.model_fields['backbone'].description} Default: "
-                                                 f"--init's, else {DEFAULT_BACKBONE}.")] = None,
+    backbone: Annotated[str | None, Choice(BACKBONES, f"{TrainSettings.model_fields['backbone'].description} Default: "
+                                           f"--init's, else {DEFAULT_BACKBONE}.")] = None,
     photos: Annotated[Path | None, typer.Option(help="Your own labelled photos to train on too (a folder; with --coco): "
                                                 "renders first, then a fine-tune with these, --init the model.")] = None,
     coco: Annotated[Path | None, typer.Option(help="With --photos: their COCO labels, as `score-photos` reads them.")] = None,
-    photo_class: Annotated[str | None, typer.Option(help="With --photos: ripe or unripe, the class of boxes whose "
-                                                    "category names no ripeness (a one-class set).")] = None,
+    photo_class: Annotated[str | None, Choice(CLASSES, "With --photos: the class of boxes whose category names no "
+                                              "ripeness (a one-class set).")] = None,
 ) -> None:
     """Train the pepper detector (SSDlite) from ImageNet or --init weights; resumes from its checkpoint; exports ONNX."""
     from renderloop.perception.detector import shipped_model
@@ -233,16 +311,10 @@ def train(
     except ImportError as error:
         why = f"{error.name} is missing" if error.name else str(error)  # a module that is there but fails to load has no name
         raise UserError(f"training needs the train extra: pip install 'renderloop[train]' ({why})") from None
-    if device not in ("auto", "cpu", "cuda"):
-        raise UserError(f"--device {device}: choose from auto, cpu, cuda")
     if init is not None and str(init) == "shipped":
         init = shipped_model()
     if (photos is None) != (coco is None):
         raise UserError("--photos and --coco go together: the photo folder and its COCO labels")
-    if photo_class is not None and photo_class not in ("ripe", "unripe"):
-        raise UserError(f"--photo-class {photo_class}: choose from ripe, unripe")
-    if backbone is not None and backbone not in BACKBONES:
-        raise UserError(f"--backbone {backbone}: choose from {', '.join(BACKBONES)}")
     if backbone is None and init is not None:
         backbone = backbone_of_init(init)
     given = {"epochs": epochs, "batch_size": batch_size, "learning_rate": learning_rate, "warmup_steps": warmup_steps,
@@ -256,19 +328,18 @@ def train(
 
 
 def _detector_options(model: Path | None, threshold: float | None, windows: str | None, mirror: bool | None) -> dict:
-    """The detector settings of `--model`, `--threshold`, `--windows` and `--mirror` as config fields; None: not given."""
+    """The detector settings given of `--model`, `--threshold`, `--windows` and `--mirror`, as config fields."""
     from renderloop.perception.tiling import layout_names, parse_layouts
 
-    return {"model": model, "score_threshold": threshold, "windows": None if windows is None else layout_names(parse_layouts(windows)),
-            "mirror": mirror}
+    given = {"model": model, "score_threshold": threshold, "windows": None if windows is None else layout_names(parse_layouts(windows)),
+             "mirror": mirror}
+    return {name: value for name, value in given.items() if value is not None}
 
 
 def _photo_detector(given: dict) -> DetectorConfig:
     """The detector settings of a verb on photos, or on runs it does not read the config of: the default config's,
     with those given on the command line."""
-    from renderloop.perception.stage import with_detector
-
-    return with_detector(Config(), **given).detector
+    return Config().override({"detector": given}).detector
 
 
 @app.command()
@@ -284,7 +355,7 @@ def detect(
 ) -> None:
     """Detect peppers: detections.json (boxes, scores, ripe/unripe, 3D world points) of a run, or of a photo folder."""
     from renderloop.perception.photos import detect_photos
-    from renderloop.perception.stage import run_detect, with_detector
+    from renderloop.perception.stage import run_detect
     from renderloop.rundir.files import read_config
 
     if (run_dir is None) == (images is None):
@@ -297,9 +368,9 @@ def detect(
             count = detect_photos(images, out, _photo_detector(given), force, progress)
         typer.echo(f"detect: {count} photos -> {out}")
         return
-    config = with_detector(read_config(run_dir), **given)
+    config = read_config(run_dir).override({"detector": given})
     with _progress_bar("detect") as progress:  # settings given on the command line mean: detect again with them
-        made = run_detect(run_dir, config, force or any(v is not None for v in given.values()), progress)
+        made = run_detect(run_dir, config, force or bool(given), progress)
     typer.echo(f"detect: {'wrote' if made else 'already complete in'} {run_dir}")
 
 
@@ -335,11 +406,11 @@ def count(
     force: Force = False,
 ) -> None:
     """Count the fruit per plant and row (OPTICS on detections.json): counts.json, harvest.json, counts/row_<id>.png."""
-    from renderloop.counting.stage import run_count, without_layout
+    from renderloop.counting.stage import run_count
     from renderloop.rundir.files import read_config, read_counts
 
     config = read_config(run_dir)
-    made = run_count(run_dir, without_layout(config) if no_layout else config, force)
+    made = run_count(run_dir, config.override({"counting": {"use_layout": False}}) if no_layout else config, force)
     total = read_counts(run_dir).total
     error = "n/a" if total.error_pct is None else f"{total.error_pct:+.1f} %"
     unseen = "" if total.unseen is None else f"; {total.unseen} never in view, {total.too_small} only too small"
@@ -360,16 +431,17 @@ def report(run_dir: RunDir, out: Annotated[Path | None, typer.Option(help="HTML 
 def evaluate_seeds(
     out: Out,
     seeds: Annotated[str, typer.Option(help="Seeds to run: 0-19, 3, or 0,4,7-9.", show_default=False)],
-    preset: Preset = "paper",
+    preset: Preset = "demo",
     config: ConfigFile = None,
     workers: Annotated[int, typer.Option(min=1, max=1024, help="Runs at once (processes, or Ray tasks).")] = 1,
     executor: Executor = "local",
     address: Address = None,
     force: Force = False,
-    mission: Annotated[str | None, typer.Option(
-        "--mission", help="static, adaptive, or both side by side: static,adaptive (default the config's mission.kind).")] = None,
+    mission: Annotated[str | None, Choice(
+        MISSIONS, "One, or several side by side: static,adaptive (default the config's mission.kind).", "--mission",
+        several=True)] = None,
 ) -> None:
-    """The paper's experiment: one full run per seed, then the yield table (eval.csv, eval.json)."""
+    """The paper's experiment (with --preset paper): one full run per seed, then the yield table (eval.csv, eval.json)."""
     from renderloop.evaluation.runner import evaluate
     from renderloop.evaluation.seeds import parse_seeds
     from renderloop.evaluation.table import EVAL_CSV, EVAL_JSON, format_table, write_eval
@@ -379,7 +451,7 @@ def evaluate_seeds(
     seed_list = parse_seeds(seeds)
     kinds = _names(mission) if mission else None
     for kind in kinds or ():
-        load_config(preset, config, mission=kind)  # an unknown mission is refused in one line, before any run
+        load_config(preset, config, mission=kind)  # each mission's config is refused in one line, before any run
     base = load_config(preset, config)
     with _progress_bar("eval") as progress:
         scenarios = evaluate(base, seed_list, out, parallel, force, progress, kinds)
@@ -429,16 +501,28 @@ def score_photo_folder(
     typer.echo(f"score-photos: wrote {out} ({', '.join(sorted(PHOTO_SCORE_FILES))})")
 
 
+SCHEMA_FORMATS = ("table", "json")
+
+
 @app.command(name="config")
 def show_config(
     preset: Preset = "demo",
     config: ConfigFile = None,
     seed: Seed = None,
-    schema: Annotated[bool, typer.Option("--schema", help="Print the JSON schema instead: every field, its unit, default and range.")] = False,
+    schema: Annotated[bool, typer.Option("--schema", help="Print every field instead: its unit, default and range.")] = False,
+    shape: Annotated[str | None, Choice(SCHEMA_FORMATS, "With --schema: a table by section to read (default), or the "
+                                       "JSON Schema for programs.", "--format")] = None,
 ) -> None:
-    """Print the resolved config (the preset, your YAML over it, the seed) as YAML, or the schema of every field."""
-    if schema:
+    """Print the resolved config (the preset, your YAML over it, the seed) as YAML, or the reference of every field."""
+    if shape is not None and not schema:
+        raise UserError(f"--format {shape} goes with --schema (the config itself prints as YAML)")
+    if schema and shape == "json":
         typer.echo(json.dumps(config_schema(), indent=1))
+        return
+    if schema:
+        from renderloop.config.reference import reference_text
+
+        typer.echo(reference_text(min(100, max(60, shutil.get_terminal_size((100, 24)).columns))), nl=False)
         return
     typer.echo(load_config(preset, config, seed).to_yaml(), nl=False)
 

@@ -26,7 +26,7 @@ from renderloop.perception import stage as detect_stage
 from renderloop.perception.detector import Detector
 from renderloop.planning import stage as plan_stage
 from renderloop.render import stage as render_stage
-from renderloop.rundir.files import record_timing
+from renderloop.rundir.files import check_config, record_timing
 from renderloop.rundir.stage import Stage, claim
 from renderloop.scene import stage as scene_stage
 from renderloop.sim import stage as fly_stage
@@ -56,6 +56,8 @@ def check_inputs(config: Config) -> None:
 def run_pipeline(run_dir: Path, config: Config, force: bool = False, console: Console | None = None) -> dict[str, float]:
     """Run every stage; returns the seconds each one took (0 when it was skipped)."""
     claim(run_dir, write=False)  # a directory that is not ours is refused before the progress display starts
+    if not force:
+        check_config(run_dir, config)  # so is one made with another config, naming the fields that differ
     check_inputs(config)  # before the first stage writes anything
     console = console or Console(stderr=True)
     seconds: dict[str, float] = {}

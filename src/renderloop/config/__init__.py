@@ -2,7 +2,8 @@
 
 `Config` and the loading are here; the sections live by subsystem (`scene`, `flight`, `camera`, `perception`,
 `mission`) on the building blocks of `fields`, and every model is importable from `renderloop.config`. `training`
-holds the settings of `renderloop train`, bounded the same way but outside a run's `Config`. A config is changed
+and `dataset` hold the settings of `renderloop train` and `renderloop dataset`, bounded the same way but outside a
+run's `Config`. A config is changed
 with `Config.override`, which validates the change as a config file is validated.
 
 The defaults are the numbers of the reference work (docs/design.md), so the `paper`
@@ -13,12 +14,14 @@ misspelt field that silently keeps its default is the worst kind of config bug.
 
 from __future__ import annotations
 
+import typing
+from collections.abc import Iterator
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import yaml
-from pydantic import Field, ValidationError, model_validator
+from pydantic import BaseModel, Field, ValidationError, model_validator
 from pydantic_core import to_jsonable_python
 
 from renderloop.config.camera import BouncesConfig, CameraConfig, DepthNoiseConfig, RasterConfig, RendererConfig, SensorConfig
@@ -26,6 +29,7 @@ from renderloop.config.fields import MAX_LEAVES, Count, Strict
 from renderloop.config.flight import PID, ArmConfig, ControllerConfig, PlannerConfig, RobotConfig, RotorConfig
 from renderloop.config.mission import AdaptiveConfig, MissionConfig
 from renderloop.config.perception import CountingConfig, DetectorConfig, IntervalConfig
+from renderloop.config.dataset import DatasetSpec
 from renderloop.config.training import TrainSettings
 from renderloop.config.scene import (
     RIPE_COLORS,
@@ -37,15 +41,16 @@ from renderloop.config.scene import (
     PlantConfig,
     PotConfig,
 )
-from renderloop.errors import UserError, problem
+from renderloop.errors import UserError, did_you_mean, problem
 from renderloop.io.bounded import load_yaml
 
 __all__ = [
     "PID", "PRESETS", "RIPE_COLORS", "AdaptiveConfig", "ArmConfig", "BouncesConfig",
-    "CameraConfig", "Config", "ControllerConfig", "CountingConfig", "DepthNoiseConfig", "DetectorConfig",
+    "CameraConfig", "Config", "ControllerConfig", "CountingConfig", "DatasetSpec", "DepthNoiseConfig", "DetectorConfig",
     "EnvironmentConfig", "GreenhouseConfig", "HighWireConfig", "IntervalConfig", "MissionConfig", "PepperConfig",
     "PepperStyleConfig", "PlannerConfig", "PlantConfig", "PotConfig", "RasterConfig", "RendererConfig", "RobotConfig",
-    "RotorConfig", "SensorConfig", "TrainSettings", "config_schema", "deep_merge", "load_config", "load_resolved", "preset_overrides",
+    "RotorConfig", "SensorConfig", "TrainSettings", "choices", "config_schema", "deep_merge", "describe_changes",
+    "load_config", "load_resolved", "preset_overrides",
     "read_config_file", "validate",
 ]
 
@@ -68,8 +73,9 @@ class Config(Strict):
         total = len(self.greenhouse.tables) * self.greenhouse.plants_per_table
         if self.plants.bearing is not None and self.plants.bearing > total:
             raise ValueError(f"plants.bearing: {self.plants.bearing} bearing plants but the greenhouse has {total}")
-        if total * self.plants.most_leaves > MAX_LEAVES:
-            raise ValueError(f"{self.plants.leaves_field}: {total} plants of up to {self.plants.most_leaves} leaves are more than {MAX_LEAVES} leaves")
+        grown = min(total, self.plants.prototypes)  # more plants than prototypes: copies, whose leaves are their prototype's
+        if grown * self.plants.most_leaves > MAX_LEAVES:
+            raise ValueError(f"{self.plants.leaves_field}: {grown} plants of up to {self.plants.most_leaves} leaves are more than {MAX_LEAVES} leaves")
         if self.camera.rate_hz > self.controller.rate_hz:
             raise ValueError(f"camera.rate_hz: frames are taken at control ticks, so {self.camera.rate_hz:g} Hz cannot be "
                              f"served by a {self.controller.rate_hz:g} Hz controller")
@@ -85,12 +91,48 @@ class Config(Strict):
         return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False, default_flow_style=None)
 
 
+def choices(model: type[BaseModel], name: str) -> tuple[str, ...]:
+    """The values the `Literal` field `name` of `model` allows, in the order its type lists them: a command-line option
+    of the same values reads them here, so they are written once."""
+    values = typing.get_args(model.model_fields[name].annotation)
+    if not values or not all(isinstance(value, str) for value in values):
+        raise TypeError(f"{model.__name__}.{name} is not a choice of names")
+    return values
+
+
+def _changes(old: Any, new: Any, path: str) -> Iterator[tuple[str, Any, Any]]:
+    """(dotted path, old value, new value) of every leaf that differs; lists of one length are compared item by item."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        for key in [*old, *(key for key in new if key not in old)]:
+            if old.get(key) != new.get(key):
+                yield from _changes(old.get(key), new.get(key), f"{path}.{key}" if path else str(key))
+    elif isinstance(old, list) and isinstance(new, list) and len(old) == len(new):
+        for index, (a, b) in enumerate(zip(old, new)):
+            if a != b:
+                yield from _changes(a, b, f"{path}.{index}")
+    else:
+        yield path, old, new
+
+
+def _short(value: Any, width: int = 40) -> str:
+    text = yaml.safe_dump(value, default_flow_style=True, width=10**6).strip().removesuffix("...").strip()
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def describe_changes(old: Config, new: Config, most: int = 5) -> str:
+    """The fields whose values differ between two configs, as `seed: 0 -> 8; camera.rate_hz: 5.0 -> 0.5`: the first
+    `most`, then how many more."""
+    found = list(_changes(old.model_dump(mode="json"), new.model_dump(mode="json"), ""))
+    shown = "; ".join(f"{path}: {_short(a)} -> {_short(b)}" for path, a, b in found[:most])
+    return shown + (f"; and {len(found) - most} more" if len(found) > most else "")
+
+
 def config_schema() -> dict[str, Any]:
     """JSON schema of the whole config: every field with its description, default and bounds."""
     return Config.model_json_schema()
 
 
-PRESETS = ("demo", "paper", "greenhouse")
+PRESETS = ("demo", "paper", "greenhouse", "commercial")
 
 
 def _read_yaml_mapping(text: str, source: str) -> dict[str, Any]:
@@ -104,7 +146,7 @@ def _read_yaml_mapping(text: str, source: str) -> dict[str, Any]:
 
 def preset_overrides(name: str) -> dict[str, Any]:
     if name not in PRESETS:
-        raise UserError(f"unknown preset {name!r} (choose from: {', '.join(PRESETS)})")
+        raise UserError(f"unknown preset {name!r} (choose from: {', '.join(PRESETS)}){did_you_mean(name, PRESETS)}")
     text = resources.files("renderloop.presets").joinpath(f"{name}.yaml").read_text(encoding="utf-8")
     return _read_yaml_mapping(text, f"preset {name}")
 
@@ -134,7 +176,8 @@ def validate(data: dict[str, Any], source: str | None) -> Config:
     try:
         return Config.model_validate(data)
     except ValidationError as exc:
-        raise UserError(f"{source}: {problem(exc)}" if source else problem(exc)) from None
+        found = problem(exc, Config)  # an unknown key names the closest field of its section
+        raise UserError(f"{source}: {found}" if source else found) from None
 
 
 def load_config(preset: str = "demo", config_file: Path | None = None, seed: int | None = None,

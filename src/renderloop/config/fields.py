@@ -66,7 +66,7 @@ def checked(model: type[Settings], source: str, **values: object) -> Settings:
     try:
         return model(**values)
     except ValidationError as error:
-        raise UserError(f"{source}: {problem(error)}") from None
+        raise UserError(f"{source}: {problem(error, model)}") from None
 
 
 def ordered_range(value: tuple[float, float], name: str) -> None:

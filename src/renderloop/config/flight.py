@@ -6,7 +6,16 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from renderloop.config.fields import Angle, Coordinate, Count, Gain, Real, Strict, ordered_range
+from renderloop.config.fields import (
+    MAX_TABLES,
+    Angle,
+    Coordinate,
+    Count,
+    Gain,
+    Real,
+    Strict,
+    ordered_range,
+)
 
 
 class RotorConfig(Strict):
@@ -69,6 +78,14 @@ class PlannerConfig(Strict):
     bands: Count(1, 20) = Field(
         1, description="Ellipses stacked up the canopy on each side of a plant, each aimed at the middle of its own "
         "band of the canopy's height: 1 where the camera sees the whole canopy, more for a tall crop.")
+    row: Count(0, MAX_TABLES - 1) | None = Field(
+        None, description="The one row the scan visits, by its index in greenhouse.tables (a mission a row in a long "
+        "compartment); null means every row.")
+    sides: Literal["both", "aisles"] = Field(
+        "both", description="Sides of a row the scan flies. 'both': each row from both its sides, out along one and "
+        "back along the other (free-standing tables). 'aisles': each row from the sides where the UAV fits its scan "
+        "line (a line of a double row faces one path; the gap between the two lines is no aisle); a row with no such "
+        "side is a planning error.")
     max_camera_pitch: Real(0.0, 1.5) = Field(0.6, description="Largest camera pitch, rad; 0.6 lets the camera aim at the centroid from the ellipse top.")
     # Lower limits keep a trajectory (its length over its speed, times sample_rate_hz samples) within memory.
     velocity_limits: tuple[Real(0.05, 20.0), ...] = Field(

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field
 
 from renderloop.config.fields import Count, Fraction, Real, Strict
 
@@ -32,16 +32,6 @@ class DetectorConfig(Strict):
         "where small fruit look larger (one network pass a window; perception/tiling.py); []: the whole frame only.")
     mirror: bool = Field(True, description="Also search the frame mirrored left to right, the passes fused: one more "
                          "network pass, for recall at the same rate of false detections (docs/stages/perception.md).")
-
-    @model_validator(mode="before")
-    @classmethod
-    def _grid_of_older_runs(cls, data: Any) -> Any:
-        """Run directories written before the window layouts say `grid: N`, meaning N x N windows."""
-        if isinstance(data, dict) and "grid" in data and "windows" not in data:
-            data = dict(data)
-            grid = data.pop("grid")
-            data["windows"] = [] if grid == 1 else [f"{grid}x{grid}"]
-        return data
 
     @property
     def layouts(self) -> list[Layout]:

@@ -24,6 +24,8 @@ from renderloop.config.fields import (
     ordered_range,
 )
 
+# Each prototype is a whole plant grown (0.4 s and 500 leaves for a high-wire one): 500 are minutes of growth.
+MAX_PROTOTYPES = 500
 RIPE_COLORS = frozenset({"red", "yellow", "orange"})  # the rest (green) is unripe: scene.json says which each fruit is
 
 
@@ -221,6 +223,13 @@ class PlantConfig(Strict):
                                             "'highwire' styles.")
     highwire: HighWireConfig = Field(HighWireConfig(), description="The stems of the 'highwire' style.")
     bearing: Count(1, MAX_PLANTS) | None = Field(20, description="Plants bearing fruit; null means every plant.")
+    # 32: the reference work's greenhouse (and the config's default) grows every plant in its place, as before.
+    prototypes: Count(1, MAX_PROTOTYPES) = Field(
+        32, description="Size of the library of plants grown for the scanned rows, plants. A greenhouse of more plants "
+        "than this grows only these (from the run's seed) and stands each of its plants as a copy of one, turned or not "
+        "by half a turn, with fruit of its own drawn from the seed on the prototype's fruit sites (which sites carry "
+        "fruit, each fruit's colour, ripeness and size), so its build time and scene.json grow by bytes a plant; with "
+        "as many plants or fewer, every plant grows in its place.")
     # Greenhouse peppers are trained up to 3-4 m.
     volume: tuple[Real(0.05, 3.0), Real(0.05, 3.0), Real(0.05, 5.0)] = Field(
         (0.44, 0.44, 0.5), description="Canopy box above the pot (x, y, z), m.")

@@ -16,6 +16,7 @@ from renderloop.config.fields import Count, Fraction, Real, Strict
 EFFICIENTNET_LITE0, MOBILENET_V3 = "efficientnet-lite0", "mobilenet-v3"
 BACKBONES = (EFFICIENTNET_LITE0, MOBILENET_V3)
 DEFAULT_BACKBONE = EFFICIENTNET_LITE0
+DEVICES = ("auto", "cpu", "cuda")  # where `renderloop train` runs; auto: cuda when torch finds one
 
 
 class TrainSettings(Strict):

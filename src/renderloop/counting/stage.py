@@ -14,15 +14,12 @@ from __future__ import annotations
 from pathlib import Path
 
 from renderloop.config import Config
-from renderloop.counting.cluster import CLASSES, class_points, count_rows
-from renderloop.counting.harvest import plan_harvest
+from renderloop.counting.cluster import CLASSES
 from renderloop.counting.plots import draw_row
-from renderloop.counting.summary import run_counting, settings_of, summarise, truth_counts
-from renderloop.counting.uncertainty import LABEL, uncertainty
+from renderloop.counting.summary import count_scan, run_counting, settings_of, truth_counts
 from renderloop.counting.visibility import fruit_visibility
 from renderloop.errors import UserError
 from renderloop.rundir import files, names
-from renderloop.rundir.models import Harvest
 from renderloop.rundir.stage import Job, Stage
 from renderloop.scene.model import read_scene
 
@@ -41,31 +38,18 @@ def _current(run_dir: Path, config: Config) -> bool:
 
 
 def _count(run_dir: Path, config: Config, job: Job) -> None:
-    counting = run_counting(config)
     scene = read_scene(run_dir)
     times, poses = files.read_poses(run_dir)
     detections = files.read_detections(run_dir, len(times))
-    points = class_points(detections.frames)
-    counts = {label: count_rows(scene, points[label], label, counting, config.seed) for label in CLASSES}
-    cameras = {index: pose[:3, 3] for index, pose in enumerate(poses)}
-    uncertain = uncertainty(scene, detections.frames, cameras, counting, config.seed, estimate=counts[LABEL])
-    document = summarise(scene, counts, detections, settings_of(counting, config.seed),
-                         fruit_visibility(run_dir, len(times)), uncertain)
-
+    counted = count_scan(scene, detections, poses, run_counting(config), config.seed, fruit_visibility(run_dir, len(times)))
     truth = truth_counts(scene)
     for index, row in enumerate(scene.rows):
         path = run_dir / names.row_plot(row.id)
         path.parent.mkdir(exist_ok=True)
-        draw_row(scene, [counts[label][index] for label in CLASSES], truth, path)
-    estimates = {plant.id: plant.estimate for plant in document.plants}
-    files.write_model(run_dir / names.HARVEST, Harvest.model_validate(plan_harvest(scene, estimates, counting.harvest_min_ripe), strict=False))
-    files.write_model(run_dir / names.COUNTS, document)  # last: its settings record marks the stage done
+        draw_row(scene, [counted.rows[label][index] for label in CLASSES], truth, path)
+    files.write_model(run_dir / names.HARVEST, counted.harvest)
+    files.write_model(run_dir / names.COUNTS, counted.counts)  # last: its settings record marks the stage done
 
 
 STAGE = Stage("count", needs=NEEDS, work=_count, current=_current)
 run_count = STAGE.run
-
-
-def without_layout(config: Config) -> Config:
-    """`renderloop count --no-layout`: nearest table and LocalOutlierFactor instead of the plant volumes."""
-    return config.override({"counting": {"use_layout": False}})

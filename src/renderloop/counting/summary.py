@@ -6,13 +6,16 @@ and seed give the same bytes.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from renderloop.config import Config, CountingConfig
-from renderloop.counting.cluster import CLASSES, RowCount
-from renderloop.counting.uncertainty import CountUncertainty, Uncertainty
+from renderloop.counting.cluster import CLASSES, RowCount, class_points, count_rows
+from renderloop.counting.harvest import plan_harvest
+from renderloop.counting.uncertainty import LABEL, CountUncertainty, Uncertainty, uncertainty
 from renderloop.counting.visibility import Seen
-from renderloop.rundir.models import Counts, Detections
+from renderloop.rundir.models import Counts, Detections, Harvest
 from renderloop.scene.model import Scene
 
 DIGITS = 6  # metres to the micrometre: stable bytes, far below any noise
@@ -128,3 +131,27 @@ def run_counting(config: Config) -> CountingConfig:
         return config.counting
     update = {name: value for name in ("interval", "lone_credit") if (value := getattr(adaptive, name)) is not None}
     return config.override({"counting": update}).counting
+
+
+@dataclass(frozen=True)
+class ScanCount:
+    """A scan counted: each class's count per row (in the scene's row order), the counts document and the harvest plan."""
+
+    rows: dict[str, list[RowCount]]
+    counts: Counts
+    harvest: Harvest
+
+
+def count_scan(scene: Scene, detections: Detections, poses: np.ndarray, counting: CountingConfig, seed: int,
+               seen: dict[int, Seen] | None) -> ScanCount:
+    """Count the fruit of `detections` per row, plant and class, with each plant's interval and the harvest plan; `poses`
+    are the scan's camera poses (T_world_optical), one per frame, and `seen` how the scan saw each fruit (None: not
+    known)."""
+    points = class_points(detections.frames)
+    rows = {label: count_rows(scene, points[label], label, counting, seed) for label in CLASSES}
+    cameras = {index: pose[:3, 3] for index, pose in enumerate(poses)}
+    uncertain = uncertainty(scene, detections.frames, cameras, counting, seed, estimate=rows[LABEL])
+    document = summarise(scene, rows, detections, settings_of(counting, seed), seen, uncertain)
+    estimates = {plant.id: plant.estimate for plant in document.plants}
+    harvest = Harvest.model_validate(plan_harvest(scene, estimates, counting.harvest_min_ripe), strict=False)
+    return ScanCount(rows, document, harvest)

@@ -27,7 +27,8 @@ from renderloop.dataset.coco import write_coco
 from renderloop.dataset.labels import neighbour_fruit_boxes, pepper_boxes, pepper_vertices
 from renderloop.dataset.preview import draw_preview
 from renderloop.dataset.picked import picked_fruit
-from renderloop.dataset.scenes import DATASET_SENSOR, FORMAT_VERSION, PICKED_VIEWS, DatasetSpec, dataset_scene
+from renderloop.config.dataset import DatasetSpec
+from renderloop.dataset.scenes import DATASET_SENSOR, FORMAT_VERSION, PICKED_VIEWS, dataset_scene, manifest
 from renderloop.dataset.views import close_view, picked_view, random_view
 from renderloop.errors import UserError
 from renderloop.io import ownership
@@ -118,14 +119,8 @@ def render_scene_views(spec: DatasetSpec, scene_index: int, view_indices: list[i
 PARTS = ("images", "labels", "annotations")  # the folders of a dataset
 
 
-def older_dataset(directory: Path) -> bool:
-    """A dataset from before the ownership mark: its manifest and nothing but a dataset's folders and files."""
-    known = {*PARTS, MANIFEST, PREVIEW}
-    return (directory / MANIFEST).is_file() and all(entry.name in known for entry in directory.iterdir())
-
-
 def claim_dataset(out: Path) -> Path:
-    return ownership.claim(out, ownership.DATASET, adopt=older_dataset)
+    return ownership.claim(out, ownership.DATASET)
 
 
 def _check_spec(out: Path, spec: DatasetSpec, force: bool) -> None:
@@ -133,20 +128,20 @@ def _check_spec(out: Path, spec: DatasetSpec, force: bool) -> None:
     path = out / MANIFEST
     if path.is_file() and not force:
         try:
-            recorded = {**spec.manifest_defaults(), **json.loads(path.read_text(encoding="utf-8"))}
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError, TypeError):
+            recorded = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
             recorded = None
         made = recorded.get("format_version") if isinstance(recorded, dict) else None
         if made != FORMAT_VERSION and isinstance(made, int):
             raise UserError(f"{out}: holds a dataset of format {made}, made by another renderloop (this one renders format "
                             f"{FORMAT_VERSION}, whose images differ); grow it with that version or use --force to replace it")
-        if recorded != spec.manifest():
+        if recorded != manifest(spec):
             raise UserError(f"{out}: holds a dataset of other settings (see {MANIFEST}); use --force to replace it")
     elif force:
         ownership.remove_recorded(out, PARTS)
     for sub in PARTS:
         (out / sub).mkdir(parents=True, exist_ok=True)
-    write_json(path, spec.manifest())
+    write_json(path, manifest(spec))
 
 
 def _pending(out: Path, spec: DatasetSpec, images: int) -> dict[int, list[int]]:

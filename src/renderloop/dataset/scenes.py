@@ -13,12 +13,10 @@ spec that draws nothing new makes the scenes it always made.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-
 import numpy as np
 
 from renderloop.config import Config, SensorConfig, deep_merge, preset_overrides, validate
-from renderloop.dataset.views import DISTANCE
+from renderloop.config.dataset import DatasetSpec
 from renderloop.errors import UserError
 from renderloop.scene.generate import generate_scene
 from renderloop.scene.model import Scene
@@ -29,8 +27,6 @@ SCENE_STREAM = 0xDA7A
 # views clear of cutting a fruit with the near clip. A set is resumed only by the format it was made with.
 FORMAT_VERSION = 3
 MAX_TRIES = 20
-STYLES = ("simple", "pepper", "highwire")
-ENVIRONMENTS = ("plain", "film")
 HIGHWIRE_HEIGHT = (1.3, 1.9)  # m: the canopy of a 'highwire' scene's plants, under the room's 3.5 m
 DATASET_LEAF_TINT = (0.0, 1.0)  # pepper_style.leaf_tint: dark green crops to light yellow-green ones
 # The colour sensor of training views: the run's camera with its white balance misjudged twice as far either way,
@@ -40,50 +36,14 @@ CLOSE_NEAR_CLIP = 0.05  # m: the camera's near clip when views come as close as 
 PICKED_VIEWS = 0.5  # share of a scene's close views that look at one of its picked fruit, where it has any
 
 
-@dataclass(frozen=True)
-class DatasetSpec:
-    """What defines the images of a dataset (its manifest); the image count is not part of it."""
-
-    seed: int = 0
-    width: int = 320
-    height: int = 240
-    views_per_scene: int = 16
-    samples: tuple[int, ...] = (2, 4, 8)  # path-tracing noise levels around the run's default, after denoising
-    val_every: int = 10  # every tenth scene is held out for validation
-    distance: tuple[float, float] = DISTANCE  # camera to plant axis, m: a close set adds the large fruit of a scan
-    sensor: float = 0.0  # share of views through the colour-sensor model, its settings drawn from DATASET_SENSOR's ranges
-    styles: tuple[str, ...] = ("simple",)  # plant styles (plants.style) a scene draws from, equally
-    environments: tuple[str, ...] = ("plain",)  # surroundings (greenhouse.environment.kind) a scene draws from, equally
-    clutter: bool = False  # distractors, mats and boards that are not peppers (dataset/clutter.py) in every scene
-    close: float = 0.0  # share of views of one fruit from 0.12-0.5 m (dataset/views.py close_view)
-    picked: float = 0.0  # share of scenes with crates and loose picked fruit (dataset/picked.py)
-
-    def __post_init__(self) -> None:
-        if not 0.0 < self.distance[0] <= self.distance[1]:
-            raise UserError(f"--distance {self.distance[0]} {self.distance[1]}: need 0 < near <= far")
-        for name, allowed in (("styles", STYLES), ("environments", ENVIRONMENTS)):
-            chosen = getattr(self, name)
-            if not chosen or any(choice not in allowed for choice in chosen) or len(set(chosen)) != len(chosen):
-                raise UserError(f"--{name} {','.join(chosen)}: choose one or more of {', '.join(allowed)}, each once")
-        for name, of in (("sensor", "views"), ("close", "views"), ("picked", "scenes")):
-            if not 0.0 <= getattr(self, name) <= 1.0:
-                raise UserError(f"--{name} {getattr(self, name)}: a share of the {of}, between 0 and 1")
-
-    @classmethod
-    def manifest_defaults(cls) -> dict:
-        """Fields that a manifest of an older version may lack, with the value its images were made with."""
-        return {"distance": list(DISTANCE), "sensor": 0.0, "styles": ["simple"], "environments": ["plain"],
-                "clutter": False, "close": 0.0, "picked": 0.0}
-
-    def manifest(self) -> dict:
-        return {"format_version": FORMAT_VERSION, **{key: list(v) if isinstance(v, tuple) else v for key, v in asdict(self).items()}}
-
-    def is_val(self, scene_index: int) -> bool:
-        return scene_index % self.val_every == self.val_every - 1
+def manifest(spec: DatasetSpec) -> dict:
+    """`dataset.json`: the renderer's format and the spec, which a dataset grows only with."""
+    return {"format_version": FORMAT_VERSION, **spec.model_dump(mode="json")}
 
 
 def _choice(rng: np.random.Generator, options: tuple[str, ...]) -> str:
-    """One of the options, equally likely; a single option draws nothing, so older datasets keep their scenes."""
+    """One of the options, equally likely; a single option draws nothing, so a spec that draws nothing new makes the
+    scenes it always made."""
     return options[int(rng.integers(len(options)))] if len(options) > 1 else options[0]
 
 

@@ -17,11 +17,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from renderloop.config.dataset import DISTANCE  # m from the plant's axis; drawn closer more often, as scans are
 from renderloop.robot.kinematics import look_at
 from renderloop.scene.model import Pepper, Scene
 from renderloop.scene.objects import Box
 
-DISTANCE = (0.3, 1.2)  # m from the plant's axis, horizontal; drawn closer more often, as scans are
 BEARING = math.radians(60.0)  # spread around the row's normal
 HEIGHT = (-0.15, 0.35)  # m about the canopy centre
 TALL = 1.0  # m: a canopy taller than this is seen at every height of it, up to TALL_HEIGHT of it from its centre

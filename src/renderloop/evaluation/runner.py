@@ -9,14 +9,13 @@ threads. With Ray, OUT must be on a file system every node sees.
 from __future__ import annotations
 
 import io
-import re
 from collections.abc import Callable
 from pathlib import Path
 
 from rich.console import Console
 
 from renderloop.config import Config
-from renderloop.evaluation.table import EVAL_CSV, EVAL_JSON, Scenario, scenario
+from renderloop.evaluation.table import Scenario, scenario
 from renderloop.io import ownership
 from renderloop.parallel import LOCAL, Executor, map_tasks
 from renderloop.pipeline import check_inputs, run_pipeline
@@ -32,11 +31,6 @@ def run_dir_of(out: Path, config: Config) -> Path:
     return Path(out) / (f"seed_{config.seed}" if kind == "static" else f"seed_{config.seed}_{kind}")
 
 
-def _older_evaluation(directory: Path) -> bool:
-    """An evaluation from before the ownership mark: only seed runs and the table in it."""
-    return all(re.fullmatch(r"seed_\d+(_adaptive)?", entry.name) or entry.name in (EVAL_CSV, EVAL_JSON) for entry in directory.iterdir())
-
-
 def run_seed(out: Path, config: Config, force: bool) -> Scenario:
     """One scenario end to end, quietly (many run at once; the caller shows one progress bar)."""
     run_dir = run_dir_of(out, config)
@@ -49,7 +43,7 @@ def evaluate(base: Config, seeds: list[int], out: Path, executor: Executor = LOC
     """Every seed's scenario under each mission (default the config's), in seed order; `progress` hears (runs
     finished, runs) as they finish."""
     check_inputs(base)  # every run shares the detector: refused once, before OUT or any run is made
-    out = ownership.claim(Path(out), ownership.EVAL, adopt=_older_evaluation)
+    out = ownership.claim(Path(out), ownership.EVAL)
     shared = executor.share_cores(base)
     kinds = missions or (base.mission.kind,)
     configs = [shared.override({"seed": seed, "mission": {"kind": kind}}) for seed in seeds for kind in kinds]

@@ -21,9 +21,6 @@ climbs out (`rgb/../../elsewhere`, an absolute path), is refused in one line and
 nothing outside is written, created or deleted. The path given for the directory
 itself may pass through links (`/tmp -> /private/tmp`): only what lies below it is held
 to it.
-
-Runs and datasets written before the mark existed are adopted when they are plainly
-ours: their key file parses as renderloop's and every entry has one of our names.
 """
 
 from __future__ import annotations
@@ -33,7 +30,7 @@ import errno
 import json
 import os
 import shutil
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from pathlib import Path, PurePosixPath
 
 from pydantic import BaseModel, ConfigDict, ValidationError
@@ -161,23 +158,6 @@ def _write_ledger(directory: Path, listed: list[str]) -> None:
     _replace_text(directory / LEDGER, "".join(name + "\n" for name in listed))
 
 
-def _files_under(directory: Path, names: Iterable[str]) -> list[str]:
-    """The files at or below each of `names`; links are neither listed nor followed (renderloop makes none, so a link
-    is the user's, and what it leads to is not ours)."""
-    found = []
-    for name in names:
-        path = directory / name
-        if path.is_symlink():
-            continue
-        if path.is_file():
-            found.append(name)
-        elif path.is_dir():
-            found += sorted(Path(folder, file).relative_to(directory).as_posix()
-                            for folder, _, files in os.walk(path) for file in files
-                            if not os.path.islink(os.path.join(folder, file)))
-    return found
-
-
 def _clear_strays(root: Path) -> None:
     """Remove the temporaries that processes of this machine left here when they were killed (a directory that carries
     its own mark is left to its own claim)."""
@@ -192,10 +172,9 @@ def _clear_strays(root: Path) -> None:
                 path.unlink(missing_ok=True)
 
 
-def claim(directory: Path, kind: str, adopt: Callable[[Path], bool] | None = None, write: bool = True) -> Path:
+def claim(directory: Path, kind: str, write: bool = True) -> Path:
     """Make `directory` ours to write into, or refuse it in one line before anything is written.
 
-    `adopt` says whether a directory without the mark is one renderloop made before the mark existed.
     With `write` false the directory is only checked (nothing is created or marked), for a verb that
     must first make sure its input is good. One inside another owned directory (an evaluation's runs)
     must not lead out of it through a link. Claimed to write, an owned directory loses the temporaries
@@ -219,13 +198,10 @@ def claim(directory: Path, kind: str, adopt: Callable[[Path], bool] | None = Non
         if write:
             _clear_strays(directory)
         return directory
-    entries = [entry.name for entry in directory.iterdir()]
-    if entries and not (adopt is not None and adopt(directory)):
+    if any(directory.iterdir()):
         raise UserError(f"{directory}: not empty and not made by renderloop (no {MARK}); give a new or empty directory")
     if not write:
         return directory
-    if entries:  # an older renderloop's directory: everything in it is ours
-        _append(directory / LEDGER, [name for name in _files_under(directory, entries) if name not in BOOKKEEPING])
     _write_mark(directory, kind)
     return directory
 
@@ -251,12 +227,6 @@ def _owners(path: Path) -> list[Path]:
             break
         parent = parent.parent
     return found
-
-
-def owner_of(path: Path) -> Path | None:
-    """The nearest owned directory above `path`, at most MAX_DEPTH levels up."""
-    owners = _owners(_plain(path))
-    return owners[0] if owners else None
 
 
 def _contained(path: Path) -> tuple[Path, Path, str] | None:

@@ -97,7 +97,7 @@ from renderloop.errors import UserError
 from renderloop.io.tum import as_stored
 from renderloop.loop.sensors import Frame
 from renderloop.loop.simulation import MAX_HOLD, Simulation
-from renderloop.loop.stage import OnlinePerception
+from renderloop.loop.perceive import OnlinePerception
 from renderloop.loop.viewpoints import (
     DISTANCE_RANGE,
     Projector,
@@ -106,7 +106,6 @@ from renderloop.loop.viewpoints import (
 )
 from renderloop.render.executor import FrameWorker
 from renderloop.render.frames import MAX_DEPTH, stored_images
-from renderloop.render.stage import with_backend
 from renderloop.robot.kinematics import (
     dofs_to_camera_pose,
     homogeneous,
@@ -159,7 +158,8 @@ class PepperScanEnv(gymnasium.Env):
         config = config if config is not None else load_config("demo")
         if not isinstance(config, Config):
             raise UserError(f"PepperScanEnv: config is a {type(config).__name__}, not a renderloop Config (load_config)")
-        config = with_backend(config, backend, "PepperScanEnv config")  # None keeps the config's
+        if backend is not None:  # None keeps the config's
+            config = config.override({"renderer": {"backend": backend}}, "PepperScanEnv config")
         self.config, self.max_views, self.time_cost = config, settings.max_views, settings.time_cost
         self.max_flight_time, self.render_mode = settings.max_flight_time, settings.render_mode
         self._owned = run_dir is None

@@ -7,11 +7,15 @@ controller ticks at its rate, sensors fire at theirs (a camera at its instants k
 the control tick at or after each), and the planned motion can be replaced mid-flight
 (`replan`, joined without a jump in position, velocity or acceleration).
 
-    sim = Simulation(config, "runs/online")     # makes the scene there unless it exists
+    sim = Simulation(config)                    # the scene generated in memory; nothing is written
     sim.follow(sim.scan_trajectory())           # the paper's scan, planned with TOPP-RA
     camera = sim.add_camera()                   # renders every camera instant while flying
     sim.run_until(10.0)
     print(sim.state.position, len(camera.frames_until(sim.t)))
+
+`Simulation(config, "runs/online")` writes the run directory instead, as `renderloop scene` and `renderloop plan` do
+(each skipped when the directory already holds this config's files), and flies what those files hold. Both fly the
+same: the plan in memory is what trajectory.csv gives back (`files.as_stored_trajectory`).
 """
 
 from __future__ import annotations
@@ -31,13 +35,15 @@ from renderloop.loop.reference import ReferencePlan
 from renderloop.loop.sensors import Camera
 from renderloop.parallel import Executor
 from renderloop.planning.check import Clash, check_trajectory
+from renderloop.planning.scan import plan_scan
 from renderloop.planning.trajectory import Trajectory
 from renderloop.planning.waypoints import read_waypoints
-from renderloop.render.stage import with_backend
 from renderloop.robot.kinematics import homogeneous
 from renderloop.rundir import files, names
+from renderloop.scene.generate import generate_scene
 from renderloop.scene.model import Scene, read_scene
 from renderloop.scene.stage import run_scene
+from renderloop.scene.world import world_xml
 from renderloop.sim.flight import Flight, FlightLog, FlightRecorder, Reference
 
 HOLD = 1.0  # s the robot hovers at the end of its plan, as `renderloop fly` does
@@ -65,18 +71,24 @@ class RobotState:
 
 
 class Simulation:
-    """One robot in one greenhouse, stepped a control period at a time."""
+    """One robot in one greenhouse, stepped a control period at a time: built in memory, or from the files of
+    `run_dir` (made there unless they exist) when one is given."""
 
-    def __init__(self, config: Config, run_dir: Path | str, hold: float = HOLD) -> None:
+    def __init__(self, config: Config, run_dir: Path | str | None = None, hold: float = HOLD) -> None:
         if not isinstance(config, Config):
             raise UserError(f"Simulation: config is a {type(config).__name__}, not a renderloop Config (load_config)")
         # validated again: a Config changed by model_copy(update=...) rather than `override` is not, and would fail stages later
         config = config.override({}, "Simulation config")
         hold = checked(SimulationSettings, "Simulation", hold=hold).hold
-        self.config, self.run_dir, self.hold = config, Path(run_dir), hold
-        run_scene(self.run_dir, config)  # skipped when the run directory already holds this config's scene
-        self.scene: Scene = read_scene(self.run_dir)
-        self.model = mujoco.MjModel.from_xml_path(str(self.run_dir / names.WORLD))
+        self.config, self.hold = config, hold
+        self.run_dir = None if run_dir is None else Path(run_dir)
+        if self.run_dir is None:
+            self.scene: Scene = generate_scene(config)
+            self.model = mujoco.MjModel.from_xml_string(world_xml(self.scene, config))
+        else:
+            run_scene(self.run_dir, config)  # skipped when the run directory already holds this config's scene
+            self.scene = read_scene(self.run_dir)
+            self.model = mujoco.MjModel.from_xml_path(str(self.run_dir / names.WORLD))
         self.flight = Flight(self.model, config, config.seed)
         self.rate_hz = config.controller.rate_hz
         self.plan: ReferencePlan | None = None
@@ -87,12 +99,18 @@ class Simulation:
     # What it flies ---------------------------------------------------------------------------------------------------
 
     def scan_trajectory(self) -> Trajectory:
-        """The scan of every plant (`renderloop plan`: elliptical waypoints, TOPP-RA), planned unless it is there."""
-        from renderloop.planning.stage import run_plan
+        """The scan of every plant (`renderloop plan`: elliptical waypoints, TOPP-RA), as trajectory.csv and
+        waypoints.csv hold it; with a run directory, planned there unless it is there already."""
+        if self.run_dir is None:
+            plan = plan_scan(self.scene, self.config, self.model)
+            table = files.as_stored_trajectory(plan.trajectory.table())
+            times = files.as_stored_times(plan.trajectory.waypoint_times)
+        else:
+            from renderloop.planning.stage import run_plan
 
-        run_plan(self.run_dir, self.config)
-        table = files.read_trajectory(self.run_dir)
-        times = np.array([w.time for w in read_waypoints(self.run_dir)])
+            run_plan(self.run_dir, self.config)
+            table = files.read_trajectory(self.run_dir)
+            times = np.array([w.time for w in read_waypoints(self.run_dir)])
         return Trajectory(table[:, 0], table[:, 1:8], table[:, 8:15], table[:, 15:22], times)
 
     def follow(self, trajectory: Trajectory | Reference) -> None:
@@ -223,7 +241,9 @@ class Simulation:
         the raster camera compresses every frame's PNGs (`frame.files`) on a thread as it renders, for a consumer that
         writes them all; otherwise a raster frame's files are compressed when first asked for (worker processes
         always send them)."""
-        camera = Camera(with_backend(self.config, backend), self.scene, self.rate_hz, rate_hz or self.config.camera.rate_hz,
+        config = self.config if backend is None else \
+            self.config.override({"renderer": {"backend": backend}}, f"unknown backend {backend!r}")
+        camera = Camera(config, self.scene, self.rate_hz, rate_hz or self.config.camera.rate_hz,
                         Executor.of(executor, workers, address), encode)
         self.sensors.append(camera)
         return camera

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from renderloop.perception.pointcloud import organised_cloud, to_world
-from renderloop.rundir.models import Detection
+from renderloop.rundir.models import Detection, DetectionFrame
 
 if TYPE_CHECKING:
     from renderloop.config import DetectorConfig
@@ -94,3 +94,10 @@ def find_fruit(detector: Detector, rgb: np.ndarray, depth: np.ndarray, pose: np.
         box = found.to_json()
         detections.append(Detection(bbox=tuple(box["bbox"]), score=box["score"], label=box["label"], position=world))
     return detections
+
+
+def detect_frame(detector: Detector, index: int, timestamp: float, image: str, rgb: np.ndarray, depth: np.ndarray,
+                 pose: np.ndarray, settings: DetectorConfig, intrinsics: Intrinsics) -> DetectionFrame:
+    """Frame `index` of a scan (its colour file named `image` in the run) with the fruit found on it."""
+    return DetectionFrame(index=index, timestamp=round(float(timestamp), 6), image=image,
+                          detections=find_fruit(detector, rgb, depth, pose, settings, intrinsics))

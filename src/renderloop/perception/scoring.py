@@ -19,13 +19,15 @@ or a leaf's edge across a fruit), is one region.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
 from renderloop.perception.boxes import box_area, box_iou, intersection
-from renderloop.scene.model import NEIGHBOUR_FRUIT_ID
+from renderloop.rundir.models import DetectionFrame, DetectionScores
+from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Scene
 
 MIN_SIDE = 20
 MATCH_IOU = 0.5
@@ -148,3 +150,11 @@ class RunScore:
             "position_error_median_m": round(float(np.median(self.errors)), 4) if self.errors else None,
             "position_error_p90_m": round(float(np.percentile(self.errors, 90)), 4) if self.errors else None,
         }
+
+
+def score_frames(scene: Scene, frames: list[DetectionFrame], masks: Iterable[np.ndarray]) -> DetectionScores:
+    """A run's detections against its instance masks, one mask per frame in the order of `frames`."""
+    score = RunScore.of_scene(scene)
+    for frame, mask in zip(frames, masks, strict=True):
+        score.add([d.model_dump() for d in frame.detections], mask)
+    return DetectionScores(**score.summary())

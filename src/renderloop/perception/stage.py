@@ -22,13 +22,13 @@ from renderloop.config import Config, DetectorConfig
 from renderloop.errors import UserError
 from renderloop.io import ownership
 from renderloop.perception.detector import Detector
-from renderloop.perception.fruit_points import find_fruit
-from renderloop.perception.scoring import RunScore
+from renderloop.perception.fruit_points import detect_frame
+from renderloop.perception.scoring import score_frames
 from renderloop.perception.sheet import draw_detection_sheet
 from renderloop.render.camera import Intrinsics, read_camera_info
-from renderloop.render.frames import decode_depth, read_png, sensor_depth_dir, sensor_rgb_dir
+from renderloop.render.frames import decode_depth, read_png, read_rgb_frame, sensor_depth_dir, sensor_rgb_dir
 from renderloop.rundir import files, names
-from renderloop.rundir.models import DetectionFrame, Detections, DetectionScores
+from renderloop.rundir.models import DetectionFrame, Detections
 from renderloop.rundir.stage import Job, Stage
 from renderloop.scene.model import read_scene
 
@@ -56,17 +56,10 @@ def _read_cache(path: Path, key: str) -> list[DetectionFrame]:
     return frames
 
 
-def read_rgb_frame(run_dir: Path, index: int) -> np.ndarray:
-    """Frame `index` as the camera delivered it: the sensor's colour stream when the run has one."""
-    path = run_dir / names.frame_file(sensor_rgb_dir(run_dir), index)
-    rgb = read_png(path, np.uint8)
-    if rgb.ndim != 3 or rgb.shape[2] != 3:
-        raise UserError(f"{path}: not an RGB image")
-    return rgb
-
-
-def detect_frame(detector: Detector, run_dir: Path, index: int, timestamp: float, pose: np.ndarray,
-                 depth_dir: str, settings: DetectorConfig, intrinsics: Intrinsics) -> DetectionFrame:
+def _read_frame(detector: Detector, run_dir: Path, index: int, timestamp: float, pose: np.ndarray, depth_dir: str,
+                settings: DetectorConfig, intrinsics: Intrinsics) -> DetectionFrame:
+    """Frame `index` read from the run, its colour and depth checked against each other and camera_info.yaml, and
+    detected."""
     rgb = read_rgb_frame(run_dir, index)
     depth_path = run_dir / names.frame_file(depth_dir, index)
     depth = decode_depth(read_png(depth_path, np.uint16))
@@ -74,8 +67,8 @@ def detect_frame(detector: Detector, run_dir: Path, index: int, timestamp: float
         raise UserError(f"{depth_path}: depth is {depth.shape[1]}x{depth.shape[0]} but the RGB frame is {rgb.shape[1]}x{rgb.shape[0]}")
     if depth.shape != (intrinsics.height, intrinsics.width):
         raise UserError(f"{depth_path}: {depth.shape[1]}x{depth.shape[0]} does not match {names.CAMERA_INFO}")
-    return DetectionFrame(index=index, timestamp=round(float(timestamp), 6), image=names.frame_file(sensor_rgb_dir(run_dir), index),
-                          detections=find_fruit(detector, rgb, depth, pose, settings, intrinsics))
+    image = names.frame_file(sensor_rgb_dir(run_dir), index)
+    return detect_frame(detector, index, timestamp, image, rgb, depth, pose, settings, intrinsics)
 
 
 def _detect(run_dir: Path, config: Config, job: Job) -> None:
@@ -94,7 +87,7 @@ def _detect(run_dir: Path, config: Config, job: Job) -> None:
         for index in range(len(frames), len(poses)):
             if job.progress:
                 job.progress(index, len(poses))
-            frame = detect_frame(detector, run_dir, index, times[index], poses[index], depth_dir, settings, intrinsics)
+            frame = _read_frame(detector, run_dir, index, times[index], poses[index], depth_dir, settings, intrinsics)
             out.write(_CacheLine(model=key, frame=frame).model_dump_json() + "\n")
             out.flush()
             frames.append(frame)
@@ -110,22 +103,10 @@ def write_detections(run_dir: Path, detector: Detector, settings: DetectorConfig
     files.write_model(run_dir / names.DETECTIONS, Detections(
         model=str(detector.path), score_threshold=settings.score_threshold, windows=list(settings.windows),
         mirror=settings.mirror, depth=depth_dir, frames=frames))
-    files.write_model(run_dir / names.DETECTION_SCORES, score_run(run_dir, frames))
+    masks = (read_png(run_dir / names.frame_file(names.MASKS, frame.index), np.uint16) for frame in frames)
+    files.write_model(run_dir / names.DETECTION_SCORES, score_frames(read_scene(run_dir), frames, masks))
     draw_detection_sheet(run_dir, frames, run_dir / names.DETECTION_SHEET)
 
 
 STAGE = Stage("detect", needs=NEEDS, work=_detect)
 run_detect = STAGE.run
-
-
-def score_run(run_dir: Path, frames: list[DetectionFrame]) -> DetectionScores:
-    score = RunScore.of_scene(read_scene(run_dir))
-    for frame in frames:
-        score.add([d.model_dump() for d in frame.detections], read_png(run_dir / names.frame_file(names.MASKS, frame.index), np.uint16))
-    return DetectionScores(**score.summary())
-
-
-def with_detector(config: Config, **overrides: object) -> Config:
-    """The config with detector settings of the command line (`--model`, `--threshold`, ...); None keeps the config's."""
-    chosen = {key: value for key, value in overrides.items() if value is not None}
-    return config.override({"detector": chosen})

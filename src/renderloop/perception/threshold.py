@@ -21,15 +21,14 @@ import numpy as np
 from renderloop.config import DetectorConfig
 from renderloop.perception.detector import PASS_FLOOR, Detector
 from renderloop.perception.scoring import FrameTruth, RunScore
-from renderloop.perception.stage import NEEDS as DETECT_NEEDS
-from renderloop.perception.stage import read_rgb_frame
-from renderloop.render.frames import read_png
+from renderloop.render.frames import read_png, read_rgb_frame
 from renderloop.rundir import files, names
 from renderloop.scene.model import Scene, read_scene
 
 THRESHOLDS = tuple(round(t, 2) for t in np.arange(PASS_FLOOR, 0.96, 0.01))  # below the floor, the search keeps no fused box
 
 Progress = Callable[[int, int], None]
+NEEDS = (names.SCENE, names.POSES, names.frames_index(names.RGB))  # what the search reads: a rendered run
 
 
 @dataclass(frozen=True)
@@ -60,14 +59,16 @@ def search_run(run_dir: Path, detector: Detector, settings: DetectorConfig, prog
     """Every frame's detections down to PASS_FLOOR, with the windows and mirror of `settings` (its threshold is what
     the search chooses), and the frame's truth."""
     run_dir = Path(run_dir)
-    files.require(run_dir, DETECT_NEEDS)
+    files.require(run_dir, NEEDS)
     scene = read_scene(run_dir)
     frames = []
     count = len(files.read_poses(run_dir)[0])
     for index in range(count):
         if progress:
             progress(index, count)
-        found = [d.to_json() for d in detector.detect(read_rgb_frame(run_dir, index), PASS_FLOOR, settings.layouts, settings.mirror)]
+        # boxes as detections.json stores them, scores unrounded: `detect` compares the unrounded score with its threshold
+        found = [{**d.to_json(), "score": d.score}
+                 for d in detector.detect(read_rgb_frame(run_dir, index), PASS_FLOOR, settings.layouts, settings.mirror)]
         frames.append((found, FrameTruth.of_mask(read_png(run_dir / names.frame_file(names.MASKS, index), np.uint16))))
     return SearchedRun(scene, frames)
 

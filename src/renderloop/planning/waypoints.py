@@ -1,4 +1,5 @@
-"""Scan waypoints q* = (x, y, z, yaw, q1, q2, q3) for every plant of every row, and the transits between them.
+"""Scan waypoints q* = (x, y, z, yaw, q1, q2, q3) for every plant of every row (or of the row `planner.row` names),
+and the transits between them.
 
 Per plant, the camera visits an ellipse in the vertical plane facing the plant
 (semi-axes from the config) so that the UAV body flies its ellipse `distance`
@@ -6,7 +7,8 @@ from the plant's axis, as in the reference planner. At each point the camera loo
 at the plant's centroid: the yaw exactly, the pitch up to `max_camera_pitch`, and
 the arm's inverse kinematics turns that camera pose into q*. Rows are visited in a
 boustrophedon over bands of rows; each row is scanned on both sides (out along
-one, back along the other) and the transits between scan lines are routed on the
+one, back along the other), or with `planner.sides: aisles` from each side that is
+an aisle the UAV fits (a line of a double row faces one path), and the transits between scan lines are routed on the
 occupancy grid so that they never cross a table, a plant or the workstation.
 """
 
@@ -148,14 +150,43 @@ def transit(planner: TransitPlanner, a: Waypoint, b: Waypoint) -> list[Waypoint]
     return transit
 
 
-def _entry(row: Row, scene: Scene, here: np.ndarray, distance: float) -> tuple[int, int]:
-    """(side, walking direction) whose first scan line starts nearest to where the UAV is now."""
+def _entry(row: Row, scene: Scene, here: np.ndarray, distance: float, sides: tuple[int, ...] = (-1, 1)) -> tuple[int, int]:
+    """(side, walking direction) of `sides` whose first scan line starts nearest to where the UAV is now."""
     ys = [scene.plant(plant_id).position[1] for plant_id in row.plants]
 
     def start(side: int, walk: int) -> tuple[float, float]:
         return row.table.center[0] + side * distance, min(ys) if walk > 0 else max(ys)
 
-    return min(((side, walk) for side in (-1, 1) for walk in (-1, 1)), key=lambda option: math.dist(here, start(*option)))
+    return min(((side, walk) for side in sides for walk in (-1, 1)), key=lambda option: math.dist(here, start(*option)))
+
+
+def _scanned_rows(scene: Scene, config: Config) -> list[Row]:
+    """The row `planner.row` names (every row when null), in the order the scan visits them."""
+    chosen = config.planner.row
+    if chosen is None:
+        return _rows_in_order(scene)
+    if chosen not in {row.id for row in scene.rows}:
+        raise UserError(f"planner.row: the scene has no row {chosen} (its rows are 0 to {len(scene.rows) - 1})")
+    return [row for row in scene.rows if row.id == chosen]
+
+
+def _blocked(line: list[Waypoint], router: TransitPlanner) -> Waypoint | None:
+    """The first waypoint of a scan line where the UAV would come within the router's radius of a table or wall."""
+    return next((waypoint for waypoint in line if not router.grid.is_free(waypoint.dofs)), None)
+
+
+def _too_close(waypoint: Waypoint, router: TransitPlanner) -> UserError:
+    return UserError(f"planner.distance: scan waypoints of plant {waypoint.plant} come within "
+                     f"{router.radius:.2f} m of a table or wall")
+
+
+def _aisle_sides(row: Row, scene: Scene, config: Config, router: TransitPlanner) -> tuple[int, ...]:
+    """The sides of a row whose scan line the UAV fits (an aisle), -1 before +1; a row with none is refused."""
+    lines = {side: scan_line(row, scene, side, 1, config) for side in (-1, 1)}
+    free = tuple(side for side, line in lines.items() if _blocked(line, router) is None)
+    if not free:
+        raise _too_close(_blocked(lines[-1], router), router)
+    return free
 
 
 def plan_waypoints(scene: Scene, config: Config) -> list[Waypoint]:
@@ -163,21 +194,28 @@ def plan_waypoints(scene: Scene, config: Config) -> list[Waypoint]:
         raise UserError("scene.json: the scene has no plants to scan")
     arm = config.robot.arm
     q1, q2 = arm.nominal_posture
-    targets = np.array([scan_target(plant) for plant in scene.plants])
+    rows = _scanned_rows(scene, config)
+    scanned = [scene.plant(plant_id) for row in rows for plant_id in row.plants]
+    if not scanned:
+        raise UserError(f"planner.row: row {config.planner.row} holds no plants to scan")
+    targets = np.array([scan_target(plant) for plant in (scene.plants if config.planner.row is None else scanned)])
     home = np.array([*config.robot.home[:2], targets[:, 2].mean(), 0.0, q1, q2, -q1 - q2])
     router = TransitPlanner(scene, footprint_radius(config))
 
     path = [Waypoint("start", home)]
-    for row in _rows_in_order(scene):
-        first_side, walk = _entry(row, scene, path[-1].dofs[:2], config.planner.distance)
-        for side, direction in ((first_side, walk), (-first_side, -walk)):
+    for row in rows:
+        if config.planner.sides == "aisles":
+            sides = _aisle_sides(row, scene, config, router)
+            first_side, walk = _entry(row, scene, path[-1].dofs[:2], config.planner.distance, sides)
+            passes = [(side, walk if side == first_side else -walk) for side in sorted(sides, key=lambda s: s != first_side)]
+        else:
+            first_side, walk = _entry(row, scene, path[-1].dofs[:2], config.planner.distance)
+            passes = [(first_side, walk), (-first_side, -walk)]
+        for side, direction in passes:
             line = scan_line(row, scene, side, direction, config)
-            for waypoint in line:
-                if not router.grid.is_free(waypoint.dofs):
-                    raise UserError(
-                        f"planner.distance: scan waypoints of plant {waypoint.plant} come within "
-                        f"{router.radius:.2f} m of a table or wall"
-                    )
+            blocked = _blocked(line, router)
+            if blocked is not None:
+                raise _too_close(blocked, router)
             path.extend(transit(router, path[-1], line[0]))
             path.extend(line)
     end = replace(path[0], kind="end")

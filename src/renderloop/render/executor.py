@@ -29,16 +29,17 @@ CHUNK = 4  # frames per task: large enough to amortise a task, small enough to b
 Rendered = list[tuple[int, dict[str, bytes], dict[str, float]]]
 
 
-def make_renderer(config: Config, scene: Scene):
-    """The renderer of the config's backend (the config model holds which there are)."""
+def make_renderer(config: Config, scene: Scene, viewpoints: np.ndarray | None = None):
+    """The renderer of the config's backend (the config model holds which there are); `viewpoints`, (N, 3): where
+    its camera will be, so that it builds only what can be seen from there (None: the whole scene)."""
     intrinsics = Intrinsics.from_config(config.camera)
     if config.renderer.backend == "raster":
         from renderloop.render.raster import RasterRenderer
 
-        return RasterRenderer(scene, config, intrinsics)
+        return RasterRenderer(scene, config, intrinsics, viewpoints)
     from renderloop.render.cycles import CyclesRenderer
 
-    return CyclesRenderer(scene, config, intrinsics)
+    return CyclesRenderer(scene, config, intrinsics, viewpoints)
 
 
 def blurs_motion(config: Config) -> bool:
@@ -53,7 +54,10 @@ class FrameWorker:
     def __init__(self, config: Config, scene: Scene, poses: np.ndarray | None = None, motion: np.ndarray | None = None):
         # poses (N, 4, 4), motion (N, 2, 4, 4): a batch's, or None for frames asked for one by one
         self.config, self.poses, self.motion = config, poses, motion
-        self.renderer = make_renderer(config, scene)
+        # with the poses known, the renderer builds what the camera sees from them (and from the shutter's ends)
+        viewpoints = None if poses is None else np.concatenate(
+            [np.asarray(poses)[:, :3, 3], *([] if motion is None else [np.asarray(motion)[:, :, :3, 3].reshape(-1, 3)])])
+        self.renderer = make_renderer(config, scene, viewpoints)
 
     def render_pose(self, index: int, pose: np.ndarray,
                     motion: np.ndarray | None = None) -> tuple[int, dict[str, bytes], dict[str, float]]:

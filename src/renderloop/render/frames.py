@@ -19,6 +19,7 @@ from PIL import Image
 from renderloop.io.atomic import write_bytes
 from renderloop.io.images import read_image_as
 from renderloop.config import Config
+from renderloop.errors import UserError
 from renderloop.render.frame import RenderedFrame
 from renderloop.rundir import names
 
@@ -107,3 +108,12 @@ def read_frame(run_dir: Path, index: int) -> RenderedFrame:
         depth=decode_depth(read_png(run_dir / names.frame_file(names.DEPTH, index), np.uint16)),
         mask=read_png(run_dir / names.frame_file(names.MASKS, index), np.uint16),
     )
+
+
+def read_rgb_frame(run_dir: Path, index: int) -> np.ndarray:
+    """Frame `index` as the camera delivered it: the sensor's colour stream when the run has one."""
+    path = Path(run_dir) / names.frame_file(sensor_rgb_dir(run_dir), index)
+    rgb = read_png(path, np.uint8)
+    if rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise UserError(f"{path}: not an RGB image")
+    return rgb

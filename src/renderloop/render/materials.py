@@ -27,6 +27,8 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
+from renderloop.render.sky import SKY_HORIZON, SKY_RAMP, SKY_STRENGTH, SKY_ZENITH
+from renderloop.render.srgb import to_linear
 from renderloop.scene.materials import DAYLIGHT, MATERIALS, Material
 from renderloop.scene.meshes import frame_from_axis
 from renderloop.scene.model import Environment
@@ -35,14 +37,9 @@ from renderloop.scene.objects import film_tint
 LEAF_COLOR_ATTRIBUTE = "leaf_rgb"
 
 
-def srgb_to_linear_array(rgb: np.ndarray) -> np.ndarray:
-    """sRGB display values in [0, 1] (any shape) to the linear values Cycles shades with."""
-    c = np.clip(np.asarray(rgb, dtype=float), 0.0, 1.0)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
 def srgb_to_linear(rgb: Sequence[float]) -> tuple[float, float, float]:
-    lin = srgb_to_linear_array(np.asarray(rgb, dtype=float)[:3])
+    """One sRGB colour as the linear triple a node socket takes."""
+    lin = to_linear(np.asarray(rgb, dtype=float)[:3])
     return float(lin[0]), float(lin[1]), float(lin[2])
 
 
@@ -365,14 +362,14 @@ def greenhouse_lighting(scene: bpy.types.Scene, rng: np.random.Generator, room: 
         "sun_azimuth_deg": float(rng.uniform(0.0, 360.0)),
         "sun_strength": float(rng.uniform(2.0, 3.5)),
         "sun_angle_deg": float(rng.uniform(0.6, 4.0)),
-        "sky_strength": float(rng.uniform(0.6, 1.1)),
+        "sky_strength": float(rng.uniform(*SKY_STRENGTH)),  # the fifth draw: render/sky.py reads it back (SKY_DRAW)
         "fill_power": float(rng.uniform(0.6, 1.4)),
     }
     world = bpy.data.worlds.new("greenhouse_sky")
     scene.world = world
     t = _Tree(world.node_tree)
     up = t.node("ShaderNodeSeparateXYZ", {0: t.node("ShaderNodeTexCoord").outputs["Generated"]}).outputs[2]
-    sky = t.mix_rgb(t.map_range(up, -0.05, 0.7, smooth=True), srgb_to_linear((0.86, 0.9, 0.95)), srgb_to_linear((0.45, 0.62, 0.9)))
+    sky = t.mix_rgb(t.map_range(up, *SKY_RAMP, smooth=True), srgb_to_linear(SKY_HORIZON), srgb_to_linear(SKY_ZENITH))
     t.output(t.node("ShaderNodeBackground", {"Color": sky, "Strength": params["sky_strength"]}).outputs[0], "ShaderNodeOutputWorld")
 
     elevation, azimuth = math.radians(params["sun_elevation_deg"]), math.radians(params["sun_azimuth_deg"])

@@ -7,10 +7,17 @@ parts as boxes and cylinders, each in the flat display colour of the material ta
 (`scene/materials.py`), each pepper its own geom so that the segmentation render
 gives its instance id, and a mocap camera that is moved to each pose. Headless
 through EGL (renderloop sets MUJOCO_GL=egl on import).
+
+Where no geometry lies in the clip range, Cycles shows its world (the sky, or the film greenhouse's glow) and
+OpenGL leaves its black clear colour: the raster view paints Cycles' world colour there (`render/sky.py`),
+composited by each pixel's coverage (the colour buffer's alpha, 0 where only the clear colour is, the share of
+covered samples on an antialiased edge), so silhouettes against the sky blend with it as Cycles' do. Depth
+and mask come from the id pass and stay as they are: 0 there.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import xml.etree.ElementTree as ET
 
@@ -20,12 +27,17 @@ import numpy as np
 from renderloop.config import Config
 from renderloop.render.camera import Intrinsics, to_gl_camera
 from renderloop.render.frame import RenderedFrame
+from renderloop.render.sky import Sky, scene_sky
 from renderloop.robot.mjcf import fmt
 from renderloop.scene.model import Scene
 from renderloop.scene.objects import SceneObject, greenhouse_objects
+from renderloop.scene.visible import farthest_seen, visible_scene
 from renderloop.scene.world import shape_geom
 
 CAMERA = "render_camera"
+SKY_BINS = 4096  # rows of the sky's table over a ray's world z in [-1, 1]: a fifth of an 8-bit level apart at most
+HIDDEN = 5  # the geom group a frame does not draw: the geoms out of the camera's reach
+SUN = (0.3, 0.4, -1.0)  # the direction the sun's light travels: dir of the world's light "sun"
 GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)  # an int: numpy compares an array with the enum object in Python, pixel by pixel
 
 
@@ -47,7 +59,8 @@ def _geom_names(obj: SceneObject) -> list[str]:
 def _add_object(asset: ET.Element, world: ET.Element, obj: SceneObject) -> None:
     """One object of the list as geoms, in its flat display colour: a mesh (or copies of templates, merged)
     as a mesh geom named like the object, primitive shapes as one geom each. Copies that are their template
-    only turned and moved (the neighbouring plants) share the template's mesh, one geom a copy at its pose."""
+    only turned and moved (the neighbouring plants) share the template's mesh, one geom a copy at its pose, each in
+    its own colour."""
     rgba = fmt(*obj.display_rgba())
     if obj.shapes:
         for shape in obj.shapes:
@@ -57,11 +70,15 @@ def _add_object(asset: ET.Element, world: ET.Element, obj: SceneObject) -> None:
         copies = obj.instances
         for index, template in enumerate(copies.templates):
             _mesh_asset(asset, f"{obj.name}_t{index}", template)
-        for name, index, transform in zip(_geom_names(obj), copies.template, copies.transforms):
+        # a copy in its own colour where the object has none (a neighbouring plant's leaves: its prototype's), so
+        # that a copy looks the same whichever other copies a view builds (scene/visible.py)
+        own = obj.rgb is None and obj.vertex_rgb is None
+        colours = [fmt(*map(float, rgb), 1.0) for rgb in copies.rgb] if own else [rgba] * len(copies.template)
+        for name, index, transform, colour in zip(_geom_names(obj), copies.template, copies.transforms, colours):
             quat = np.zeros(4)
             mujoco.mju_mat2Quat(quat, np.ascontiguousarray(transform[:3, :3]).ravel())
             ET.SubElement(world, "geom", name=name, type="mesh", mesh=f"{obj.name}_t{int(index)}",
-                          pos=fmt(*transform[:3, 3]), quat=fmt(*quat), rgba=rgba)
+                          pos=fmt(*transform[:3, 3]), quat=fmt(*quat), rgba=colour)
         return
     mesh = obj.triangles()
     if len(mesh.faces) == 0:
@@ -85,7 +102,7 @@ def render_world_xml(objects: list[SceneObject], config: Config, intrinsics: Int
     ET.SubElement(default, "geom", contype="0", conaffinity="0")
     asset = ET.SubElement(root, "asset")
     world = ET.SubElement(root, "worldbody")
-    ET.SubElement(world, "light", name="sun", directional="true", pos="0 0 5", dir="0.3 0.4 -1", diffuse="0.6 0.6 0.6",
+    ET.SubElement(world, "light", name="sun", directional="true", pos="0 0 5", dir=" ".join(f"{v:g}" for v in SUN), diffuse="0.6 0.6 0.6",
                   castshadow=str(look.shadows).lower())
     for obj in objects:
         _add_object(asset, world, obj)
@@ -100,12 +117,27 @@ class RasterRenderer:
     the geom ids, whose depth buffer is the depth (MuJoCo's own depth render is that same id pass read for depth,
     so reading both from one pass saves a third render and read-back: 10 ms of a 640x480 frame)."""
 
-    MAX_GEOMS = 10_000  # mujoco.Renderer's default
+    DECOR_GEOMS = 100  # room in the drawn scene beyond the model's geoms, for what mjv_updateScene adds of its own
 
-    def __init__(self, scene: Scene, config: Config, intrinsics: Intrinsics):
-        objects = greenhouse_objects(scene)
+    def __init__(self, scene: Scene, config: Config, intrinsics: Intrinsics, viewpoints: np.ndarray | None = None):
+        """The render world of `scene`; `viewpoints`, (N, 3) camera positions (m): of the plants only those the camera
+        can see from one of them (scene/visible.py), None: every plant."""
+        # PyOpenGL, which mujoco's GL contexts load: imported once MUJOCO_GL has chosen its platform
+        from OpenGL import GL
+
+        self._gl_api = GL
+        self.sky: Sky = scene_sky(scene)
+        self.sky_table = self.sky.colour(np.linspace(-1.0, 1.0, SKY_BINS))  # by a ray's world z
+        shade = np.array(SUN) if config.renderer.raster.shadows else None  # the sun's shadows reach the view too
+        reach = farthest_seen(config.camera.clip[1], **dataclasses.asdict(intrinsics))
+        objects = greenhouse_objects(visible_scene(scene, viewpoints, reach, shade))
         model = self.model = mujoco.MjModel.from_xml_string(render_world_xml(objects, config, intrinsics))
         self.data = mujoco.MjData(model)
+        # every geom stands still in the world: where each is, once, so that a frame draws only those in reach
+        mujoco.mj_kinematics(model, self.data)
+        self.reach, self.shade = reach, shade
+        self.geom_centre, self.geom_radius = self.data.geom_xpos.copy(), model.geom_rbound.copy()
+        self.geom_group = model.geom_group.copy()
         self.near, self.far = config.camera.clip
         self.width, self.height = intrinsics.width, intrinsics.height
         self.gl = mujoco.GLContext(model.vis.global_.offwidth, model.vis.global_.offheight)
@@ -113,13 +145,19 @@ class RasterRenderer:
         self.context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self.context)
         self.context.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR  # reversed z: far is 0, more precision far away
-        self.scene = mujoco.MjvScene(model, maxgeom=self.MAX_GEOMS)
+        self.scene = mujoco.MjvScene(model, maxgeom=model.ngeom + self.DECOR_GEOMS)
         self.option, self.perturb, self.camera = mujoco.MjvOption(), mujoco.MjvPerturb(), mujoco.MjvCamera()
+        self.option.geomgroup[HIDDEN] = 0
         self.camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self.camera.fixedcamid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, CAMERA)
         self.rect = mujoco.MjrRect(0, 0, self.width, self.height)
         extent = model.stat.extent  # the clip planes of the GL projection, float32 as glFrustum has them
         self.gl_near, self.gl_far = np.float32(model.vis.map.znear * extent), np.float32(model.vis.map.zfar * extent)
+        # each pixel's ray in the optical frame, unit length, one plane per axis: its world z is what the sky's
+        # gradient follows
+        u, v = np.meshgrid(np.arange(self.width, dtype=np.float64), np.arange(self.height, dtype=np.float64))
+        rays = np.stack([(u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy, np.ones_like(u)])
+        self.rays = (rays / np.linalg.norm(rays, axis=0)).astype(np.float32)
         self.pepper_of_geom = np.zeros(model.ngeom + 1, dtype=np.uint16)  # index -1 (background) lands on the extra 0
         for obj in filter(lambda obj: obj.pass_index, objects):
             for name in _geom_names(obj):
@@ -141,12 +179,14 @@ class RasterRenderer:
         self.data.mocap_pos[0] = camera[:3, 3]
         mujoco.mju_mat2Quat(self.data.mocap_quat[0], camera[:3, :3].ravel())
         mujoco.mj_forward(self.model, self.data)
+        self._show_near(np.asarray(pose, dtype=float)[:3, 3])
         self.gl.make_current()
         scene, flags = self.scene, self.scene.flags
         mujoco.mjv_updateScene(self.model, self.data, self.option, self.perturb, self.camera, mujoco.mjtCatBit.mjCAT_ALL, scene)
         rgb = np.empty((self.height, self.width, 3), dtype=np.uint8)
         mujoco.mjr_render(self.rect, scene, self.context)
         mujoco.mjr_readPixels(rgb, None, self.rect, self.context)
+        coverage = self._coverage()
         ids = np.empty((self.height, self.width, 3), dtype=np.uint8)
         z = np.empty((self.height, self.width), dtype=np.float32)
         saved = flags.copy()
@@ -158,6 +198,7 @@ class RasterRenderer:
             np.copyto(flags, saved)
         # GL's rows run bottom to top
         rgb, ids, depth = np.flipud(rgb).copy(), np.flipud(ids), np.flipud(self._metric_depth(z))
+        self._paint_sky(rgb, np.flipud(coverage), pose)
         depth[(depth < self.near) | (depth >= self.far * 0.9999)] = 0.0
         segment = ids[:, :, 0].astype(np.int32) + (ids[:, :, 1].astype(np.int32) << 8) + (ids[:, :, 2].astype(np.int32) << 16)
         geom_of_segment = np.full(scene.ngeom + 1, -1, dtype=np.int32)  # segment 0 is the background
@@ -167,6 +208,46 @@ class RasterRenderer:
                 geom_of_segment[drawn.segid + 1] = drawn.objid
         mask = self.pepper_of_geom[geom_of_segment[segment]]
         return RenderedFrame(rgb=rgb, depth=np.ascontiguousarray(depth), mask=mask, timings={"total": time.perf_counter() - start})
+
+    def _show_near(self, position: np.ndarray) -> None:
+        """Draw only the geoms within reach of the camera at `position`, or whose shadow is (software OpenGL pays for
+        every triangle it is given): the others are no pixel's and shade none, so the frame stays the same."""
+        centre, radius = self.geom_centre, self.geom_radius
+        if self.shade is None:
+            distance = np.linalg.norm(centre - position, axis=1)
+        else:  # to the path of the geom's centre along the sun down to the floor (a radius below it)
+            length = np.maximum(centre[:, 2] + radius, 0.0) / -self.shade[2]
+            along = np.clip((position - centre) @ self.shade / (self.shade @ self.shade), 0.0, length)
+            distance = np.linalg.norm(centre + along[:, None] * self.shade - position, axis=1)
+        self.model.geom_group[:] = np.where(distance <= self.reach + radius, self.geom_group, HIDDEN)
+
+    def _coverage(self) -> np.ndarray:
+        """The colour pass's alpha, bottom row first: geometry writes 1 and the clear colour is 0, so after the
+        multisample resolve it is the covered share of each pixel. mjr_readPixels reads RGB only; this reads the
+        buffer it has just read from (the resolved one, or the single-sample one without antialiasing)."""
+        GL, context = self._gl_api, self.context
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, context.offFBO_r if context.offSamples else context.offFBO)
+        GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0)
+        alpha = GL.glReadPixels(0, 0, self.width, self.height, GL.GL_ALPHA, GL.GL_UNSIGNED_BYTE)
+        mujoco.mjr_restoreBuffer(context)
+        return np.frombuffer(alpha, dtype=np.uint8).reshape(self.height, self.width)
+
+    def _paint_sky(self, rgb: np.ndarray, coverage: np.ndarray, pose: np.ndarray) -> None:
+        """Cycles' world colour behind the geometry, in place: rgb holds the geometry premultiplied by its
+        coverage (over black), so the sky adds in by the uncovered share, whole where nothing is drawn."""
+        if coverage.min() == 255:
+            return
+        if self.sky.uniform:
+            sky = self.sky_table[0]
+        else:
+            # the world z of each pixel's ray, looked up in the sky's table (finer than an 8-bit level)
+            x, y, z = np.asarray(pose, dtype=np.float32)[2, :3]
+            up = self.rays[0] * x + self.rays[1] * y + self.rays[2] * z
+            index = ((up + np.float32(1.0)) * np.float32((SKY_BINS - 1) / 2.0) + np.float32(0.5)).astype(np.intp)
+            sky = np.take(self.sky_table, np.clip(index, 0, SKY_BINS - 1), axis=0)
+        scaled = sky.astype(np.uint16) * (255 - coverage).astype(np.uint16)[..., None] + 128
+        scaled = (scaled + (scaled >> 8)) >> 8  # sky times the uncovered share: x / 255 rounded, exact for 16 bits
+        np.copyto(rgb, np.minimum(rgb + scaled, 255), casting="unsafe")
 
     def close(self) -> None:
         self.context.free()

@@ -26,19 +26,9 @@ from PIL import Image, ImageFilter
 from scipy.ndimage import gaussian_filter
 
 from renderloop.config import SensorConfig
+from renderloop.render.srgb import decode_u8, encode_u8
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 luminance of linear RGB
-
-
-def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
-    c = np.asarray(rgb, dtype=np.float32) / 255.0
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
-
-
-def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
-    c = np.clip(linear, 0.0, 1.0)
-    encoded = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
-    return np.rint(encoded * 255.0).astype(np.uint8)
 
 
 def _draw(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
@@ -89,7 +79,7 @@ def _jpeg(rgb: np.ndarray, quality: float) -> np.ndarray:
 
 def sensor_rgb(rgb: np.ndarray, depth: np.ndarray, settings: SensorConfig, rng: np.random.Generator) -> np.ndarray:
     """The frame the camera would deliver for the ideal sRGB `rgb` (uint8) with planar `depth` (m, 0 = no return)."""
-    linear = srgb_to_linear(rgb)
+    linear = decode_u8(rgb)
     balance = 1.0 + rng.normal(0.0, _draw(rng, settings.white_balance_error), 3)
     warmth = _draw(rng, settings.white_balance_warmth)  # most of an auto white balance's error lies on the daylight axis
     balance = balance * np.exp([warmth / 2, 0.0, -warmth / 2])
@@ -106,5 +96,5 @@ def sensor_rgb(rgb: np.ndarray, depth: np.ndarray, settings: SensorConfig, rng: 
     shot, read = _draw(rng, settings.shot_noise), _draw(rng, settings.read_noise)
     sigma = np.sqrt(np.maximum(linear, 0.0) * shot * gain + (read * gain) ** 2)
     linear = linear + rng.standard_normal(linear.shape).astype(np.float32) * sigma.astype(np.float32)
-    encoded = _sharpen(linear_to_srgb(linear), _draw(rng, settings.sharpen))
+    encoded = _sharpen(encode_u8(linear), _draw(rng, settings.sharpen))
     return _jpeg(encoded, _draw(rng, settings.jpeg_quality))

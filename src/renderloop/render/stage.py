@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from renderloop.config import BouncesConfig, Config, RasterConfig, SensorConfig
+from renderloop.config import Config
 from renderloop.errors import UserError
 from renderloop.io import ownership
 from renderloop.render.camera import Intrinsics, write_camera_info
@@ -39,6 +39,8 @@ def _sha256(data: bytes) -> str:
 
 
 def render_record(run_dir: Path, config: Config, poses: np.ndarray) -> RenderRecord:
+    """What frames rendered now in `run_dir` would be made from: its scene file, these poses and the config's camera
+    and renderer."""
     return RenderRecord(
         backend=config.renderer.backend,
         frames=len(poses),
@@ -46,34 +48,13 @@ def render_record(run_dir: Path, config: Config, poses: np.ndarray) -> RenderRec
         scene_sha256=_sha256((run_dir / names.SCENE).read_bytes()),
         seed=config.seed,
         camera=config.camera.model_dump(mode="json"),
-        # the thread count and the device say how fast frames come, not what they hold (threads kept at 0 and the
-        # device left out, so older records still match)
+        # the thread count and the device say how fast frames come, not what they hold
         renderer={**config.renderer.model_dump(mode="json", exclude={"backend", "device"}), "threads": 0},
     )
 
 
-def _recorded(run_dir: Path) -> RenderRecord | None:
-    recorded = files.read_render_record(run_dir)
-    if recorded is None:
-        return None
-    # a record from before the bounces or the raster look were configurable: its frames had today's defaults, then
-    # hard-coded
-    missing = {name: section().model_dump(mode="json") for name, section in (("bounces", BouncesConfig), ("raster", RasterConfig))
-               if name not in recorded.renderer}
-    if missing:
-        recorded = recorded.model_copy(update={"renderer": {**missing, **recorded.renderer}})
-    if "sensor" not in recorded.camera:  # from before the colour sensor: it was off
-        recorded = recorded.model_copy(update={"camera": {**recorded.camera, "sensor": SensorConfig().model_dump(mode="json")}})
-    sensor = recorded.camera["sensor"]
-    if "exposure_time" not in sensor and not (sensor.get("enabled") and recorded.backend == "cycles"):
-        # from before motion blur, which would not have changed its frames (sensor off, or raster): today's default
-        sensor = {**sensor, "exposure_time": list(SensorConfig().exposure_time)}
-        recorded = recorded.model_copy(update={"camera": {**recorded.camera, "sensor": sensor}})
-    return recorded
-
-
 def _same_record(run_dir: Path, config: Config) -> bool:
-    return _recorded(run_dir) == render_record(run_dir, config, files.read_poses(run_dir)[1])
+    return files.read_render_record(run_dir) == render_record(run_dir, config, files.read_poses(run_dir)[1])
 
 
 def check_disk(run_dir: Path, config: Config, frames: int) -> None:
@@ -88,7 +69,7 @@ def check_disk(run_dir: Path, config: Config, frames: int) -> None:
 def _render(run_dir: Path, config: Config, job: Job) -> None:
     times, poses = files.read_poses(run_dir)
     record = render_record(run_dir, config, poses)
-    if job.force or _recorded(run_dir) != record:
+    if job.force or files.read_render_record(run_dir) != record:
         clear_frames(run_dir)
         files.write_model(run_dir / names.RENDER_RECORD, record)
 
@@ -130,12 +111,3 @@ def finish_render(run_dir: Path, config: Config, times: np.ndarray) -> None:
 
 STAGE = Stage("render", needs=NEEDS, work=_render, current=_same_record)
 run_render = STAGE.run
-
-
-def with_backend(config: Config, backend: str | None, source: str | None = None) -> Config:
-    """The config with another renderer backend (`renderloop render --backend`, `Simulation.add_camera`, the gym
-    environment; the render record says which made the frames), validated as a config file is: the config model holds
-    the backends there are, and an unknown one is its one line, after `source` (default: `unknown backend '...'`)."""
-    if backend is None:
-        return config
-    return config.override({"renderer": {"backend": backend}}, source or f"unknown backend {backend!r}")

@@ -28,6 +28,7 @@ from renderloop.io.atomic import write_text
 from renderloop.pipeline import stages_of
 from renderloop.render.camera import read_camera_info
 from renderloop.report import words
+from renderloop.report.frames import frames_section
 from renderloop.report.plants import legend, plant_cards
 from renderloop.report.view3d import greenhouse_figure, greenhouse_html
 from renderloop.rundir import files, names
@@ -35,7 +36,7 @@ from renderloop.rundir.models import Counts, Estimate, Harvest, Mission
 from renderloop.rundir.stage import claim
 from renderloop.scene.model import read_scene
 
-REQUIRED = (names.CONFIG, names.TOP_VIEW, names.FLIGHT_PATHS, names.TRACKING_ERROR, names.CONTACT_SHEET,
+REQUIRED = (names.CONFIG, names.TOP_VIEW, names.FLIGHT_PATHS, names.TRACKING_ERROR, names.frames_index(names.DEPTH),
             names.DETECTION_SHEET, names.DETECTION_SCORES, names.COUNTS, names.HARVEST)
 # What else the page is made from (the typed readers name the stage of a missing one); a report newer than all of
 # them, and than REQUIRED, is current.
@@ -61,7 +62,6 @@ table.yield { font-size: 1.05em; } table.yield td { white-space: nowrap; } table
 .headline { font-size: 1.25em; margin: 0.4em 0 0.2em; } .headline b { font-size: 1.15em; }
 img { max-width: 100%; border: 1px solid #ddd; } figure { margin: 0.5em 0; } figcaption { color: var(--muted); font-size: 0.9em; }
 pre { background: #f7f7f7; padding: 0.8em; overflow-x: auto; font-size: 0.85em; }
-.figures { display: grid; grid-template-columns: repeat(auto-fit, minmax(480px, 1fr)); gap: 0.8em; }
 .cards { display: grid; grid-template-columns: repeat(auto-fill, minmax(300px, 1fr)); gap: 0.9em; }
 .card { border: 1px solid var(--line); border-radius: 6px; padding: 0.7em 0.8em; border-top: 5px solid #c62828; }
 .card.exact { border-top-color: #2e7d32; } .card table { width: 100%; font-size: 0.95em; } .card img { width: 100%; }
@@ -72,6 +72,15 @@ pre { background: #f7f7f7; padding: 0.8em; overflow-x: auto; font-size: 0.85em; 
 .bar { display: inline-block; height: 0.8em; background: #7aa6d6; vertical-align: middle; }
 dl.scores { display: grid; grid-template-columns: max-content max-content; gap: 0.25em 1.5em; } dl.scores dd { margin: 0; font-weight: 600; }
 details summary { cursor: pointer; color: #1f5fa8; }
+.wide figure { margin: 0.8em 0 1.4em; } .wide img { width: 100%; }
+.frames { display: grid; grid-template-columns: repeat(var(--columns), minmax(0, 1fr)); gap: 0.2em 0.6em; }
+.frames figure { margin: 0 0 0.4em; } .frames img { width: 100%; image-rendering: auto; }
+.frames .colhead { font-weight: 600; }
+.depthscale { display: flex; align-items: center; flex-wrap: wrap; gap: 0.4em 1.2em; margin: 0.6em 0 0.9em; }
+.depthscale .ramp { width: 24em; } .depthscale .gradient { height: 1em; border: 1px solid #999; }
+.depthscale .ticks { display: flex; justify-content: space-between; font-size: 0.85em; }
+.depthscale .off i { display: inline-block; width: 1.4em; height: 1em; border: 1px solid #999; vertical-align: middle;
+  margin-right: 0.4em; }
 """
 
 
@@ -254,16 +263,17 @@ def build_report(run_dir: Path) -> str:
         "detector": ("<p>The detections of every frame scored against the instance masks (the simulator's truth); a detection "
                      "matches a fruit when the boxes overlap by half (IoU 0.5).</p>"
                      f'<dl class="scores">{score_list}</dl>'
+                     f"<p>{html.escape(words.recall_sentence(scores, counts))}</p>"
                      + _png(run_dir / names.DETECTION_SHEET, "detections and truth",
                             "Frames spread over the scan: the detector's boxes (left) and the true fruit from the masks "
                             "(right; grey: too small to find).")),
-        "flight": (f"<p>{html.escape(_flight_sentence(flight))}</p><div class='figures'>"
+        "flight": (f"<p>{html.escape(_flight_sentence(flight))}</p><div class='wide'>"
                    + _png(run_dir / names.FLIGHT_PATHS, "planned and flown paths", "The planned and the flown path.")
                    + _png(run_dir / names.TRACKING_ERROR, "tracking error",
                           "How far the robot was from where the plan had it, over time.") + "</div>"),
-        "frames": _png(run_dir / names.CONTACT_SHEET, "contact sheet", "Frames of the scan: colour, depth and masks."),
+        "frames": frames_section(run_dir, times),
         "clusters": ("<p>How the 3D points of each row were clustered into fruit: top and side views, the true fruit as open "
-                     "circles.</p><div class='figures'>"
+                     "circles.</p><div class='wide'>"
                      + "".join(_png(path, f"row {row}", f"Row {row}.") for row, path in row_plots) + "</div>"
                      if row_plots else "<p>No cluster plots in this run.</p>"),
         "harvest": _harvest_section(harvest),
@@ -295,12 +305,15 @@ def current(run_dir: Path, out: Path) -> bool:
 def write_report(run_dir: Path, out: Path | None = None, force: bool = False, only_if_stale: bool = False) -> Path:
     """report.html in the run directory, or `out`: a file of the user's is replaced only with `force`.
     `only_if_stale`: keep a report.html that is newer than every file it shows (what `renderloop run` does)."""
-    if out is None:
-        out = claim(run_dir) / names.REPORT
+    inside = out is None
+    if inside:
+        out = claim(run_dir, write=False) / names.REPORT  # checked only: a run that fails to read leaves nothing behind
     elif Path(out).exists() and not force:
         raise UserError(f"{out}: exists; use --force to replace it")
     if only_if_stale and current(run_dir, out):
         return Path(out)
     page = build_report(run_dir)
+    if inside:
+        claim(run_dir)
     write_text(Path(out), page)
     return Path(out)

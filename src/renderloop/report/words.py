@@ -78,6 +78,22 @@ def score_lines(scores: DetectionScores) -> list[tuple[str, str]]:
     ]
 
 
+def recall_sentence(scores: DetectionScores, counts: Counts) -> str:
+    """Why a detector that misses many views still gives a right count: recall counts views, the count counts fruit."""
+    total = counts.total
+    shown = total.truth - total.unseen - total.too_small if total.unseen is not None and total.too_small is not None else total.truth
+    fruit = f"the {shown} ripe fruit it showed big enough to find" if shown != total.truth else f"the {shown} ripe fruit"
+    each = f" (about {scores.ripe_findable / shown:.0f} views each)" if shown else ""
+    views = counts.settings.get("min_views")
+    needed = f"{views} or more of its views" if isinstance(views, int) else "enough of its views"
+    found = f"{scores.ripe_found} of those {scores.ripe_findable} views" + (
+        f" ({100 * scores.ripe_found / scores.ripe_findable:.0f} %)" if scores.ripe_findable else "")
+    return (f"Recall is counted per view, not per fruit: the scan showed {fruit} {scores.ripe_findable} times in all{each} "
+            f"and the detector found the fruit in {found}; the count instead gathers the 3D points of all views into one "
+            f"cluster a fruit and counts a fruit found in {needed}, so a fruit missed in many views is still counted: "
+            f"here {total.estimate} estimated against {total.truth} true.")
+
+
 def tally_sentence(tally: DetectionTally) -> str:
     """What the count was made from."""
     text = (f"The count used {tally.ripe} ripe and {tally.unripe} unripe detections with a 3D point, "

@@ -16,6 +16,7 @@ the row and column, for tables); every number is checked finite and within its b
 
 from __future__ import annotations
 
+import io
 import math
 from pathlib import Path, PurePosixPath
 from typing import TypeVar
@@ -23,11 +24,11 @@ from typing import TypeVar
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
-from renderloop.config import Config, PlannerConfig, RotorConfig, load_resolved
+from renderloop.config import Config, PlannerConfig, RotorConfig, describe_changes, load_resolved
 from renderloop.config.fields import WORLD_BOUND
 from renderloop.errors import UserError, problem
 from renderloop.io.atomic import dumps_json, write_text
-from renderloop.io.bounded import Bound, check_increasing, check_json_depth, field_bounds, load_json, number_text
+from renderloop.io.bounded import Bound, check_increasing, check_json_depth, field_bounds, number_text
 from renderloop.io.csvtable import read_csv, row_name, write_csv
 from renderloop.io.tum import read_tum, write_tum
 from renderloop.rundir import names
@@ -245,8 +246,9 @@ def check_config(run_dir: Path, config: Config) -> None:
     """Refuse to add files of one config to a run directory made with another: mixing two seeds' files in one
     directory would make every later figure a lie."""
     path = Path(run_dir) / names.CONFIG
-    if path.is_file() and _what_it_computes(load_resolved(path)) != _what_it_computes(config):
-        raise UserError(f"{path}: this run directory was made with another config; use --force to start it again, or another --out")
+    if path.is_file() and (made := _what_it_computes(load_resolved(path))) != (given := _what_it_computes(config)):
+        raise UserError(f"{path}: this run directory was made with another config ({describe_changes(made, given)}); "
+                        "use --force to start it again, or another --out")
 
 
 # Tables: trajectory, flight, poses, frame lists ----------------------------------------------------------
@@ -268,6 +270,19 @@ def read_trajectory(run_dir: Path) -> np.ndarray:
         raise UserError(f"{path}: {row_name(index)} has {number_text(table[index, 0])} in column t, not one "
                         f"sample step ({number_text(steps[0])} s) after {row_name(index - 1)}")
     return table
+
+
+def as_stored_trajectory(table: np.ndarray) -> np.ndarray:
+    """A trajectory table as trajectory.csv gives it back (six decimals, as written and parsed): a plan flown from
+    memory is then the plan `renderloop fly` flies from the file, to the bit."""
+    buffer = io.StringIO()
+    np.savetxt(buffer, np.asarray(table) + 0.0, delimiter=",", fmt="%.6f")  # write_csv's format
+    return np.loadtxt(io.StringIO(buffer.getvalue()), delimiter=",", ndmin=2, comments=None)
+
+
+def as_stored_times(times: np.ndarray) -> np.ndarray:
+    """Waypoint times as waypoints.csv gives them back (six decimals)."""
+    return np.array([float(f"{t:.6f}") for t in times])
 
 
 def write_flight(run_dir: Path, table: np.ndarray) -> None:
@@ -301,44 +316,3 @@ def write_frames_index(run_dir: Path, stream: str, times: np.ndarray) -> None:
     lines = [f"# {stream} images of renderloop, TUM RGB-D layout", "# timestamp filename"]
     lines += [f"{t:.6f} {names.frame_file(stream, i)}" for i, t in enumerate(times)]
     write_text(Path(run_dir) / names.frames_index(stream), "\n".join(lines) + "\n")
-
-
-def read_frames_index(run_dir: Path, stream: str) -> list[tuple[float, str]]:
-    path = Path(run_dir) / names.frames_index(stream)
-    if not path.is_file():
-        raise _missing(run_dir, names.frames_index(stream)) if stream != names.DEPTH_SENSOR else UserError(f"{path}: no such file")
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except UnicodeDecodeError:
-        raise UserError(f"{path}: not a readable text file") from None
-    entries = []
-    for number, line in enumerate(lines, start=1):
-        if line.startswith("#") or not line.strip():
-            continue
-        parts = line.split()
-        try:
-            if len(parts) != 2:
-                raise ValueError
-            entries.append((float(parts[0]), parts[1]))
-        except ValueError:
-            raise UserError(f"{path}: line {number} is not `timestamp filename`") from None
-        time, image = entries[-1]
-        if (problem := TIME.problem(time)) is not None:
-            raise UserError(f"{path}: line {number} has {number_text(time)} as its timestamp, {problem}")
-        if len(entries) > 1 and time < entries[-2][0]:
-            raise UserError(f"{path}: line {number} has {number_text(time)} as its timestamp, earlier than the line before")
-        relative = PurePosixPath(image)
-        if relative.is_absolute() or ".." in relative.parts or "\\" in image:
-            raise UserError(f"{path}: line {number} names {image!r}, not a file inside the run directory")
-    return entries
-
-
-def read_json(path: Path) -> object:
-    """A JSON file of ours whose model is the caller's business (a dataset's records), its nesting bounded."""
-    try:
-        data = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such file") from None
-    except OSError:
-        raise UserError(f"{path}: not a readable JSON file") from None
-    return load_json(data, str(path))

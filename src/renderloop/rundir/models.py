@@ -75,7 +75,6 @@ class Detections(FileModel):
     model: str
     score_threshold: Unit
     windows: list[str] = []  # window layouts (columns x rows) searched besides the whole frame
-    grid: int | None = Field(None, ge=1, le=MAX_COUNT)  # what files written before the layouts said instead: windows per side
     mirror: bool = False  # the mirrored frame searched too
     depth: str | None = None  # which depth stream gave the positions
     frames: list[DetectionFrame]
@@ -122,7 +121,7 @@ class PlantCount(FileModel):
     seen_once: list[Point] = []  # ripe detections in no cluster, away from every counted fruit (fruit seen once), m
     unseen: Count | None = None  # ripe fruit of the plant no frame showed (from the masks; null without masks)
     too_small: Count | None = None  # ripe fruit only ever seen smaller than the detector's findable size
-    interval: CountInterval | None = None  # where the true ripe count lies (null in files written before intervals)
+    interval: CountInterval | None = None  # where the true ripe count lies (null: counted without the intervals)
     weak_clusters: Count | None = None  # counted ripe fruit whose cluster is weakly supported or seen from one side
     unseen_fraction: Unit | None = None  # share of the canopy box no depth frame has seen (null: not known)
 

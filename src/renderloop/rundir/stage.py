@@ -13,8 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from renderloop.config import Config, load_resolved
-from renderloop.errors import UserError
+from renderloop.config import Config
 from renderloop.io import ownership
 from renderloop.parallel import LOCAL, Executor
 from renderloop.rundir import files, names
@@ -65,22 +64,6 @@ class Stage:
         return True
 
 
-def _older_run(directory: Path) -> bool:
-    """A run directory from before the ownership mark: its config loads as ours, it holds a scene, and every entry has
-    one of our names (a TUM RGB-D folder has our frame names, never our config)."""
-    known = {name for outputs in names.OUTPUTS.values() for name in outputs}
-    known |= {*names.FRAME_DIRS, names.frames_index(names.DEPTH_SENSOR), names.RENDER_RECORD, names.DETECT_CACHE,
-              names.COUNT_PLOTS, names.TIMINGS, names.REPORT}
-    entries = {entry.name for entry in directory.iterdir()}
-    if not entries <= known or not {names.CONFIG, names.SCENE} <= entries:
-        return False
-    try:
-        load_resolved(directory / names.CONFIG)
-    except UserError:
-        return False
-    return True
-
-
 def claim(run_dir: Path, write: bool = True) -> Path:
     """Make `run_dir` a renderloop run directory, or refuse it in one line (see `ownership.claim`)."""
-    return ownership.claim(run_dir, ownership.RUN, adopt=_older_run, write=write)
+    return ownership.claim(run_dir, ownership.RUN, write=write)

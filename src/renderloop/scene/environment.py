@@ -117,8 +117,11 @@ def _round(values: np.ndarray) -> tuple[float, ...]:
     return tuple(round(float(v), 6) for v in values)
 
 
-def draw_environment(config: Config, rows: list[Row], plants: list[Plant]) -> Environment:
-    """The film greenhouse round the room of a scene whose scanned rows and plants are `rows` and `plants`."""
+def draw_environment(config: Config, rows: list[Row], plants: list[Plant],
+                     library: list[Prototype] | None = None) -> Environment:
+    """The film greenhouse round the room of a scene whose scanned rows and plants are `rows` and `plants`; with a
+    `library` of plant prototypes (scene/library.py), its first PROTOTYPES stand in the neighbouring rows too, so
+    scene.json holds them once and no more plants are grown."""
     greenhouse, settings = config.greenhouse, config.greenhouse.environment
     rng = np.random.default_rng(np.random.SeedSequence([config.seed, ENVIRONMENT_STREAM]))
     day = int(rng.integers(settings.day_of_year[0], settings.day_of_year[1] + 1))
@@ -132,7 +135,8 @@ def draw_environment(config: Config, rows: list[Row], plants: list[Plant]) -> En
         raise UserError(f"greenhouse.environment.gutter_height: the trusses under gutters at {settings.gutter_height} m "
                         f"reach down to {lowest:.2f} m, into the {greenhouse.size[2]} m high room")
     bench_width, _, bench_height = greenhouse.table_size
-    prototypes = _prototypes(rng, config, bench_height)
+    shared = min(PROTOTYPES, len(library)) if library else None
+    prototypes = library[:shared] if shared else _prototypes(rng, config, bench_height)
     tops = [plant.bounds.max[2] for plant in plants] + [p.plant.bounds.max[2] for p in prototypes]
     if max(tops) >= settings.wire_height:
         raise UserError(f"greenhouse.environment.wire_height: the crop wire at {settings.wire_height} m is not above "
@@ -149,7 +153,7 @@ def draw_environment(config: Config, rows: list[Row], plants: list[Plant]) -> En
         tables.append(Table(center=_round(np.array([x, sum(ends) / 2, bench_height / 2])),
                             size=_round(np.array([bench_width, ends[1] - ends[0], bench_height]))))
         for y in ys:
-            prototype = int(rng.integers(PROTOTYPES))
+            prototype = int(rng.integers(len(prototypes)))
             background.append(BackgroundPlant(prototype=prototype, position=_round(np.array([x, y, bench_height])),
                                               yaw=round(float(rng.uniform(0.0, 2 * math.pi)), 6)))
             if rng.random() < clutter * TRAPS_PER_METRE * spacing:
@@ -161,5 +165,5 @@ def draw_environment(config: Config, rows: list[Row], plants: list[Plant]) -> En
         kind="film", hour=round(hour, 6), day_of_year=day, sun=_round(sun), cloud=round(cloud, 6),
         aerosol=round(aerosol, 6), film_age=round(film_age, 6), extent=settings.extent,
         gutter_height=settings.gutter_height, wire_height=settings.wire_height,
-        tables=tables, prototypes=prototypes, plants=background, traps=traps,
+        tables=tables, prototypes=prototypes, plants=background, traps=traps, shared=shared,
     )

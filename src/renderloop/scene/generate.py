@@ -1,4 +1,5 @@
-"""Build a whole greenhouse scene from a config: layout, which plants bear, how many fruit, the plants.
+"""Build a whole greenhouse scene from a config: layout, which plants bear, how many fruit, the plants (each grown in
+its place, or with more plants than `plants.prototypes` each a copy of a prototype: scene/library.py).
 
 Each plant draws from its own child of the run's SeedSequence, so changing one
 plant's parameters does not reshuffle every plant after it, and the same seed
@@ -13,6 +14,7 @@ from renderloop.config import Config
 from renderloop.errors import UserError
 from renderloop.scene.environment import draw_environment
 from renderloop.scene.layout import table_slots
+from renderloop.scene.library import copy_plant, grow_library
 from renderloop.scene.model import MAX_PEPPER_ID, Row, Scene, Table, Workstation
 from renderloop.scene.plant import PepperFitError
 from renderloop.scene.styles import GROWERS
@@ -40,16 +42,21 @@ def generate_scene(config: Config) -> Scene:
         raise UserError(f"plants.peppers.per_side: more than {MAX_PEPPER_ID} peppers in one scene")
 
     grow = GROWERS[plants_config.style]
+    # More plants than the library holds: each is a copy of a prototype with fruit of its own (scene/library.py)
+    library = grow_library(config, greenhouse.table_size[2]) if total > plants_config.prototypes else None
     rows, plants, peppers = [], [], []
     for slot in slots:
         plant_ids = []
         for position in slot.plant_positions:
             plant_id = len(plants)
+            rng = np.random.default_rng(plant_seeds[plant_id])
             try:
-                plant, fruit = grow(
-                    np.random.default_rng(plant_seeds[plant_id]), plants_config, plant_id, slot.row, position,
-                    per_side.get(plant_id, (0, 0)), first_pepper_id=len(peppers) + 1,
-                )
+                if library is not None:
+                    plant, fruit = copy_plant(rng, plants_config, library, plant_id, slot.row, position,
+                                              per_side.get(plant_id, (0, 0)), first_pepper_id=len(peppers) + 1)
+                else:
+                    plant, fruit = grow(rng, plants_config, plant_id, slot.row, position,
+                                        per_side.get(plant_id, (0, 0)), first_pepper_id=len(peppers) + 1)
             except PepperFitError:
                 raise UserError(
                     f"plants.peppers.per_side: up to {high} peppers of up to {plants_config.peppers.length[1]} m "
@@ -69,5 +76,6 @@ def generate_scene(config: Config) -> Scene:
         rows=rows,
         plants=plants,
         peppers=peppers,
-        environment=draw_environment(config, rows, plants) if film else None,
+        prototypes=library,
+        environment=draw_environment(config, rows, plants, library) if film else None,
     )

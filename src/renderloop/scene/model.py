@@ -20,7 +20,8 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
+import numpy as np
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_serializer, model_validator
 
 from renderloop.config import Config, EnvironmentConfig
 from renderloop.config.fields import MAX_PLANTS, MAX_TABLES, WORLD_BOUND
@@ -135,19 +136,51 @@ class Flower(Frozen):
     radius: PartSize
 
 
+BODY = ("stem", "branches", "leaves", "flowers", "strings")  # what a copy of a prototype takes from it, not the file
+
+
 class Plant(Frozen):
+    """A plant grown in its place, or (`prototype` set) a copy of one of the scene's prototypes, turned by `yaw`
+    about its axis and stood at `position`: its body (stem, branches, leaves, flowers, strings) is the prototype's,
+    its fruit its own (the scene's `peppers`), so scene.json holds a prototype's leaves once however many copies
+    stand in the rows."""
+
     id: PlantId
     row: int = Field(ge=-1, lt=MAX_TABLES, description="The row it stands in; -1: a prototype of the neighbouring rows.")
     position: Vec3 = Field(description="Centre of the pot's base, on the table top.")
     bounds: Box = Field(description="Axis-aligned box holding the whole plant, pot included.")
     bearing: bool
     pot: Pot
-    stem: Tube
-    branches: list[Tube]
-    leaves: list[Leaf]
-    flowers: list[Flower]
+    stem: Tube | None = WhenSet("The main stem; a copy of a prototype has its prototype's.")
+    branches: list[Tube] = Field(default_factory=list)
+    leaves: list[Leaf] = Field(default_factory=list)
+    flowers: list[Flower] = Field(default_factory=list)
     strings: list[Vec3] | None = WhenSet("Where each stem's string is tied at the plant's foot (the 'highwire' "
                                          "style); a string runs straight up from there to the crop wire.")
+    prototype: int | None = WhenSet("Index in the scene's `prototypes` of the plant this one is a copy of.", ge=0)
+    yaw: Angle | None = WhenSet("A copy's turn about its vertical axis from its prototype, rad.")
+
+    @model_validator(mode="after")
+    def _body(self) -> Plant:
+        if self.prototype is None:
+            if self.stem is None:
+                raise ValueError("a plant that is no copy of a prototype needs its stem")
+        elif self.yaw is None or any(getattr(self, name) for name in BODY):
+            raise ValueError("a copy of a prototype has a yaw and takes its stem, branches, leaves, flowers and "
+                             "strings from the prototype")
+        return self
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: Any) -> dict[str, Any]:
+        data = handler(self)
+        if self.prototype is not None:  # a copy's body is its prototype's: the file names it, never repeats it
+            for name in BODY:
+                data.pop(name, None)
+        return data
+
+    @property
+    def is_copy(self) -> bool:
+        return self.prototype is not None
 
 
 class Calyx(Frozen):
@@ -177,6 +210,50 @@ class Pepper(Frozen):
     ripeness: float | None = WhenSet(
         "Share of the skin in the fruit's colour; the rest is still green, with brown where the two meet (the "
         "breaker stage; 'pepper' style). Ripe or not is `color`'s.", ge=0, le=1)
+    site: int | None = WhenSet("A copy's fruit: the index of the fruit site of its plant's prototype it hangs on; "
+                               "scene.json then keeps only its own draws (COPY_FRUIT), the rest follows from the site.",
+                               ge=0)
+    # at most 1: a fruit scaled about its stalk end stays inside the site's bounding sphere, which the leaves keep clear of
+    scale: float | None = WhenSet("A copy's fruit: its size over its site's, scaled about the stalk end.", gt=0, le=1)
+
+
+# What scene.json keeps of a copy's fruit: its id and its own draws; `copy_fruit` rebuilds the rest from the site.
+COPY_FRUIT = ("id", "plant", "site", "scale", "color", "ripe", "rgb", "ripeness")
+
+
+def copy_fruit(compact: dict[str, Any], position: Any, yaw: float, origin: Any, site: dict[str, Any]) -> dict[str, Any]:
+    """The whole record of a copy's fruit from its own draws (`compact`, the COPY_FRUIT fields) and the prototype's
+    site it hangs on (a Pepper's fields in the prototype's frame, whose pot's base is at `origin`), for a copy turned
+    by `yaw` and stood at `position`: the generator and the reader both build a copy's fruit here, so a scene read
+    back is the scene written. Scaling about the stalk end keeps the site's peduncle as it is."""
+    transform = _placement(position, yaw, origin)
+    rotation, shift = transform[:3, :3], transform[:3, 3]
+
+    def moved(point: Any) -> tuple[float, ...]:
+        return tuple(round(float(v), 6) for v in rotation @ np.asarray(point, dtype=float) + shift)
+
+    scale = float(compact["scale"])
+    site_center = np.asarray(site["center"], dtype=float)
+    stalk_end = np.asarray(site["peduncle"]["points"][-1], dtype=float)
+    across = (rotation @ (site_center - np.asarray(origin, dtype=float)))[0]
+    calyx = site.get("calyx")
+    return {
+        **compact,
+        "side": "left" if across < 0 else "right",
+        "center": moved(stalk_end + scale * (site_center - stalk_end)),
+        "radius": math.ceil(float(site["radius"]) * scale * 1e6) / 1e6 + 2e-6,
+        "length": round(float(site["length"]) * scale, 6),
+        "width": round(float(site["width"]) * scale, 6),
+        "lobes": site["lobes"],
+        "lobe_depth": site["lobe_depth"],
+        "axis": tuple(round(float(v), 6) for v in rotation @ np.asarray(site["axis"], dtype=float)),
+        # scene/meshes.frame_from_axis starts a fruit's lobes from world x: under a half turn about z that start
+        # turns by half a turn about the fruit's axis too, so the copy's twist adds it and the copy's mesh is its
+        # site's turned (a view may draw one as the other)
+        "twist": round((float(site["twist"]) + (math.pi if math.cos(yaw) < 0 else 0.0)) % (2 * math.pi), 6),
+        "peduncle": {"points": [moved(point) for point in site["peduncle"]["points"]], "radius": site["peduncle"]["radius"]},
+        "calyx": None if calyx is None else {"sepals": calyx["sepals"], "reach": round(float(calyx["reach"]) * scale, 6)},
+    }
 
 
 class Workstation(Frozen):
@@ -185,8 +262,10 @@ class Workstation(Frozen):
 
 
 class Prototype(Frozen):
-    """A plant of the neighbouring rows, grown once (its pot's base at x = y = 0) and stood in many places. Its fruit
-    are drawn but never counted: the masks mark them NEIGHBOUR_FRUIT_ID, and they are not in the scene's `peppers`."""
+    """A plant grown once (its pot's base at x = y = 0) and stood in many places. Of the neighbouring rows: its fruit
+    are drawn but never counted (the masks mark them NEIGHBOUR_FRUIT_ID, and they are not in the scene's `peppers`).
+    Of the scanned rows (the scene's `prototypes`): its fruit are the sites where a copy's own fruit may hang, each
+    copy drawing which sites carry fruit and each fruit's colour, ripeness and size."""
 
     plant: Plant
     fruit: list[Pepper]
@@ -231,6 +310,8 @@ class Environment(Frozen):
     prototypes: list[Prototype]
     plants: list[BackgroundPlant]
     traps: list[Trap]
+    shared: int | None = WhenSet("The prototypes are the first `shared` of the scene's own `prototypes` (scene.json "
+                                 "then lists them there only).", ge=1)
 
     @model_validator(mode="after")
     def _prototypes_exist(self) -> Environment:
@@ -249,7 +330,62 @@ class Scene(Frozen):
     rows: list[Row]
     plants: list[Plant]
     peppers: list[Pepper]
+    prototypes: list[Prototype] | None = WhenSet("The plants that the scanned plants are copies of, each grown once "
+                                                 "(plants.prototypes); none: every plant grown in its place.")
     environment: Environment | None = WhenSet("The film greenhouse round the room; none: plain walls.")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _whole_copy_fruit(cls, data: Any) -> Any:
+        """A copy's fruit as scene.json keeps it (its COPY_FRUIT fields) made whole from its plant's prototype."""
+        if not isinstance(data, dict):
+            return data
+        environment = data.get("environment")
+        if isinstance(environment, dict) and "prototypes" not in environment and isinstance(environment.get("shared"), int):
+            if not isinstance(data.get("prototypes"), list) or not 1 <= environment["shared"] <= len(data["prototypes"]):
+                raise ValueError(f"environment.shared: {environment['shared']} but the scene has "
+                                 f"{len(data.get('prototypes') or ())} prototypes")
+            data = {**data, "environment": {**environment, "prototypes": data["prototypes"][:environment["shared"]]}}
+        if not isinstance(data.get("peppers"), list):
+            return data
+        if not any(isinstance(p, dict) and "site" in p and "center" not in p for p in data["peppers"]):
+            return data
+        plants, prototypes = data.get("plants"), data.get("prototypes")
+        peppers = []
+        for index, pepper in enumerate(data["peppers"]):
+            if isinstance(pepper, dict) and "site" in pepper and "center" not in pepper:
+                try:
+                    extra = set(pepper) - set(COPY_FRUIT)
+                    if extra:
+                        raise ValueError(f"{sorted(extra)[0]} is not kept for a copy's fruit")
+                    if not isinstance(pepper["plant"], int) or pepper["plant"] < 0:
+                        raise ValueError(f"plant {pepper['plant']!r} is not a plant's id")
+                    plant = plants[pepper["plant"]]
+                    if plant.get("prototype") is None:
+                        raise ValueError(f"plant {pepper['plant']} is no copy of a prototype")
+                    if not isinstance(plant["prototype"], int) or not 0 <= plant["prototype"] < len(prototypes or ()):
+                        raise ValueError(f"its plant's prototype, plants.{pepper['plant']}.prototype: "
+                                         f"{plant['prototype']!r} but there are {len(prototypes or ())} prototypes")
+                    prototype = prototypes[plant["prototype"]]
+                    if not isinstance(pepper["site"], int) or not 0 <= pepper["site"] < len(prototype["fruit"]):
+                        raise ValueError(f"site {pepper['site']} but its prototype has {len(prototype['fruit'])}")
+                    pepper = copy_fruit(pepper, plant["position"], float(plant["yaw"]), prototype["plant"]["position"],
+                                        prototype["fruit"][pepper["site"]])
+                except (KeyError, IndexError, TypeError, AttributeError, ValueError) as exc:
+                    detail = exc if isinstance(exc, ValueError) else f"no {exc}" if isinstance(exc, KeyError) else "malformed"
+                    raise ValueError(f"peppers.{index}: a copy's fruit that does not resolve ({detail})") from None
+            peppers.append(pepper)
+        return {**data, "peppers": peppers}
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: Any) -> dict[str, Any]:
+        data = handler(self)
+        if self.environment is not None and self.environment.shared:  # the neighbouring rows' are the scene's prototypes
+            data["environment"].pop("prototypes")
+        if self.prototypes:  # a copy's fruit: its own draws only, the rest is its site's
+            data["peppers"] = [{key: p[key] for key in COPY_FRUIT if key in p} if p.get("site") is not None else p
+                               for p in data["peppers"]]
+        return data
 
     @model_validator(mode="after")
     def _references(self) -> Scene:
@@ -262,6 +398,9 @@ class Scene(Frozen):
                 raise ValueError(f"plants.{index}.id: {plant.id}, but a plant's id is its place in the list")
             if plant.row not in rows:
                 raise ValueError(f"plants.{index}.row: {plant.row} is not the id of a row")
+            if plant.prototype is not None and plant.prototype >= len(self.prototypes or ()):
+                raise ValueError(f"plants.{index}.prototype: {plant.prototype} but there are "
+                                 f"{len(self.prototypes or ())} prototypes")
         for index, row in enumerate(self.rows):
             missing = [plant for plant in row.plants if plant >= len(self.plants)]
             if missing:
@@ -273,8 +412,13 @@ class Scene(Frozen):
             if pepper.id in ids:
                 raise ValueError(f"peppers.{index}.id: {pepper.id} is the id of another pepper too")
             ids.add(pepper.id)
-        prototypes = self.environment.prototypes if self.environment else []
+        if self.environment is not None and self.environment.shared:
+            if self.environment.prototypes != (self.prototypes or [])[:self.environment.shared]:
+                raise ValueError(f"environment.shared: {self.environment.shared}, but the neighbouring rows' prototypes "
+                                 "are not the first of the scene's")
+        prototypes = self.environment.prototypes if self.environment and not self.environment.shared else []
         for where, plant in [*((f"plants.{p.id}", p) for p in self.plants),
+                             *((f"prototypes.{i}.plant", p.plant) for i, p in enumerate(self.prototypes or ())),
                              *((f"environment.prototypes.{i}.plant", p.plant) for i, p in enumerate(prototypes))]:
             for index, leaf in enumerate(plant.leaves):
                 if leaf.template is not None and leaf.template >= len(LEAF_SHAPES):
@@ -286,7 +430,49 @@ class Scene(Frozen):
         return self.plants[plant_id]
 
     def peppers_of(self, plant_id: int) -> list[Pepper]:
-        return [pepper for pepper in self.peppers if pepper.plant == plant_id]
+        # An index built on first use (a scene of a thousand plants is asked for each), kept beside the fields of
+        # the frozen model and tied to its list of peppers, so a copy with other peppers builds its own.
+        key, by_plant = self.__dict__.get("_by_plant", (None, None))
+        if key != id(self.peppers):
+            by_plant = {}
+            for pepper in self.peppers:
+                by_plant.setdefault(pepper.plant, []).append(pepper)
+            self.__dict__["_by_plant"] = (id(self.peppers), by_plant)
+        return list(by_plant.get(plant_id, ()))
+
+    def prototype_of(self, plant: Plant) -> Prototype | None:
+        """The prototype a copy stands for (None for a plant grown in its place)."""
+        return None if plant.prototype is None else self.prototypes[plant.prototype]
+
+    def body(self, plant: Plant) -> Plant:
+        """The plant whose stem, branches, leaves, flowers and strings `plant` has: itself, or its prototype (in the
+        prototype's frame: `placement` maps it into the world)."""
+        prototype = self.prototype_of(plant)
+        return plant if prototype is None else prototype.plant
+
+    def strings_of(self, plant: Plant) -> list[tuple[float, float, float]] | None:
+        """Where a plant's strings are tied, in the world (a copy's are its prototype's, moved with it)."""
+        prototype = self.prototype_of(plant)
+        if prototype is None:
+            return plant.strings
+        if not prototype.plant.strings:
+            return None
+        transform = placement(plant, prototype.plant)
+        return [tuple(round(float(v), 6) for v in transform[:3, :3] @ foot + transform[:3, 3]) for foot in prototype.plant.strings]
+
+
+def placement(plant: Plant, prototype: Plant) -> np.ndarray:
+    """4x4 map from a prototype's frame to its copy `plant`'s: a turn by the copy's yaw about the prototype's axis,
+    which lands on the copy's position."""
+    return _placement(plant.position, plant.yaw or 0.0, prototype.position)
+
+
+def _placement(position: Any, yaw: float, origin: Any) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    transform = np.eye(4)
+    transform[:2, :2] = [[c, -s], [s, c]]
+    transform[:3, 3] = np.asarray(position, dtype=float) - transform[:3, :3] @ np.asarray(origin, dtype=float)
+    return transform
 
 
 def load_scene(path: Path) -> Scene:

@@ -8,7 +8,10 @@ each object's triangles, and each copy of a template as an instance of one share
 the raster renderer (`render/raster.py`) makes a MuJoCo geom of each mesh, of the copies
 merged, or of each shape; and the physics world (`scene/world.py`) reads the same static
 shapes next to its own simple collision volumes for the plants. Each view translates
-every kind of object in one function.
+every kind of object in one function. The plants that are copies of a prototype come as a
+`Group` per prototype (its parts once, and where each copy stands) when a view asks for groups
+(Cycles instances a collection); `expand_groups` gives the others each part's copies placed by
+pose, sharing one mesh.
 
 Numpy only (no bpy, no mujoco), so any process can build the list.
 """
@@ -24,10 +27,18 @@ import numpy as np
 from renderloop.scene import meshes
 from renderloop.scene.materials import MATERIALS, RGBA
 from renderloop.scene.meshes import Mesh
-from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Environment, Pepper, Plant, Scene
-from renderloop.scene.plant_meshes import LEAF_SHAPES, PETIOLE, leaf_template, leaf_transform, plant_meshes
+from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Environment, Pepper, Plant, Scene, placement
+from renderloop.scene.plant_meshes import (
+    LEAF_SHAPES,
+    PETIOLE,
+    calyx_mesh,
+    leaf_template,
+    leaf_transform,
+    pepper_mesh,
+    plant_meshes,
+)
 
-__all__ = ["Box", "Cylinder", "Instances", "SceneObject", "greenhouse_objects", "collision_objects", "static_objects",
+__all__ = ["Box", "Cylinder", "Group", "Instances", "SceneObject", "expand_groups", "greenhouse_objects", "collision_objects", "static_objects",
            "environment_objects", "wall_boxes", "table_boxes", "WALL_THICKNESS", "WORKSTATION_COLUMN"]
 
 TABLE_TOP_THICKNESS = 0.04
@@ -109,6 +120,7 @@ class Instances:
     rgb: np.ndarray  # (K, 3)
     alpha: np.ndarray  # (K,)
     template_rgb: tuple[np.ndarray, ...] | None = None  # per template, an sRGB colour per vertex (a 'simple' plant's leaves)
+    pass_index: np.ndarray | None = None  # (K,) int: each copy's own instance id (the copies' fruit), else the object's
 
     def merged(self) -> Mesh:
         """Every copy's triangles in one mesh, in copy order (what a view without instancing draws)."""
@@ -255,7 +267,7 @@ def _wires_and_strings(scene: Scene, inside: bool) -> list[Cylinder]:
     wire = environment.wire_height
     if inside:
         lines = sorted({row.table.center[0] for row in scene.rows})
-        feet = [foot for plant in scene.plants for foot in _string_feet(plant)]
+        feet = [foot for plant in scene.plants for foot in _string_feet(plant, scene.strings_of(plant))]
     else:
         scanned = {round(row.table.center[0], 6) for row in scene.rows}
         lines = sorted({table.center[0] for table in environment.tables} - scanned)
@@ -268,9 +280,11 @@ def _wires_and_strings(scene: Scene, inside: bool) -> list[Cylinder]:
     return shapes
 
 
-def _string_feet(plant: Plant) -> list[tuple[float, float, float]]:
-    """Where a plant's strings start: where each stem's is tied (the 'highwire' style), else one at its top."""
-    return list(plant.strings) if plant.strings else [(plant.position[0], plant.position[1], plant.bounds.max[2])]
+def _string_feet(plant: Plant, strings: list[tuple[float, float, float]] | None = None) -> list[tuple[float, float, float]]:
+    """Where a plant's strings start: where each stem's is tied (the 'highwire' style: `strings`, else the plant's
+    own), else one at its top."""
+    strings = plant.strings if strings is None else strings
+    return list(strings) if strings else [(plant.position[0], plant.position[1], plant.bounds.max[2])]
 
 
 @functools.cache
@@ -411,46 +425,179 @@ def environment_objects(scene: Scene) -> list[SceneObject]:
     return objects + _background_plants(environment)
 
 
-def greenhouse_objects(scene: Scene) -> list[SceneObject]:
+@dataclass(frozen=True)
+class Group:
+    """Objects drawn together at many poses: the parts of a plant prototype in its own frame (`objects`), stood
+    where each of its copies stands (`transforms`, 4x4 rigid maps). A view that can instance a group of objects
+    (Cycles: a collection instanced by each copy) translates its objects once; `expand_groups` turns it into
+    plain objects, each part's copies placed by pose, for the views that cannot."""
+
+    name: str
+    objects: tuple[SceneObject, ...]
+    transforms: np.ndarray  # (K, 4, 4)
+
+
+def _plant_body(plant: Plant, name: str, parts) -> list[SceneObject]:
+    """A plant's pot, stem, leaves and flowers as objects named `<part>_<name>`."""
+    objects = [SceneObject(f"pot_{name}", parts.pot, "pot"), SceneObject(f"stem_{name}", parts.stem, "stem", smooth=True)]
+    own = [(leaf, m) for leaf, m in zip(plant.leaves, parts.leaves) if leaf.template is None]
+    if own:
+        colors = np.concatenate([np.tile(leaf.rgb, (len(m.vertices), 1)) for leaf, m in own])
+        objects.append(SceneObject(f"leaves_{name}", meshes.merge([m for _, m in own]), "leaf", smooth=True,
+                                   vertex_rgb=colors))
+    copies = [leaf for leaf in plant.leaves if leaf.template is not None]
+    if copies:
+        instances = Instances(
+            templates=tuple(leaf_template(i) for i in range(len(LEAF_SHAPES))),
+            template=np.array([leaf.template for leaf in copies]),
+            transforms=np.array([leaf_transform(leaf) for leaf in copies]),
+            rgb=np.array([leaf.rgb for leaf in copies]),
+            alpha=np.array([leaf.dust or 0.0 for leaf in copies]),
+        )
+        objects.append(SceneObject(f"leaf_copies_{name}", material="pepper_leaf", smooth=True, instances=instances))
+    if parts.flowers is not None:
+        objects.append(SceneObject(f"flowers_{name}", parts.flowers, "flower"))
+    return objects
+
+
+def _fruit(peppers: list[Pepper], parts) -> list[SceneObject]:
+    """One object per pepper: its pass_index is its id; a 'pepper' style fruit has the 'fruit_' material and its ripe
+    share as alpha."""
+    objects = []
+    for pepper in peppers:
+        skin = "pepper" if pepper.ripeness is None else "fruit"
+        objects.append(SceneObject(f"pepper_{pepper.id}", parts.peppers[pepper.id], f"{skin}_{pepper.color}",
+                                   pass_index=pepper.id, rgb=tuple(pepper.rgb), smooth=True,
+                                   alpha=1.0 if pepper.ripeness is None else pepper.ripeness))
+    return objects
+
+
+def _copied_plants(scene: Scene) -> list[SceneObject | Group]:
+    """The plants that are copies of prototypes: each prototype's body once, as a group stood where its copies stand,
+    then the copies' own parts: the stalks and calyces of all their fruit (two objects) and each fruit."""
+    copies = [plant for plant in scene.plants if plant.is_copy]
+    if not copies:
+        return []
+    groups: list[SceneObject | Group] = []
+    for index, prototype in enumerate(scene.prototypes or ()):
+        standing = [plant for plant in copies if plant.prototype == index]
+        if standing:
+            body = prototype.plant
+            groups.append(Group(f"prototype_{index}", tuple(_plant_body(body, f"prototype_{index}", plant_meshes(body, []))),
+                                np.array([placement(plant, body) for plant in standing])))
+    stalks = [meshes.tube(np.array(p.peduncle.points), p.peduncle.radius)
+              for plant in copies for p in scene.peppers_of(plant.id)]
+    if stalks:
+        groups.append(SceneObject("fruit_stalks", meshes.merge(stalks), "stem", smooth=True))
+    return groups + _copied_fruit(scene, copies)
+
+
+def _copied_fruit(scene: Scene, copies: list[Plant]) -> list[SceneObject]:
+    """The copies' fruit as copies of their sites' meshes (scaled about the stalk end, turned and moved with the
+    plant), one object per material whose copies each carry their fruit's id, colour and ripe share; their calyces
+    likewise. A fruit's mesh so is its site's, shared by every copy that carries it (a compartment's ten thousand
+    fruit are otherwise ten thousand meshes); `expand_groups` gives each its own object again."""
+    sites: dict[tuple[int, int], int] = {}
+    fruit_templates, calyx_templates, calyx_of = [], [], {}
+    by_material: dict[str, list] = {}
+    calyces: list = []
+    for plant in copies:
+        prototype = scene.prototype_of(plant)
+        moved = placement(plant, prototype.plant)
+        for pepper in scene.peppers_of(plant.id):
+            key = (plant.prototype, pepper.site)
+            site = prototype.fruit[pepper.site]
+            if key not in sites:
+                sites[key] = len(fruit_templates)
+                fruit_templates.append(pepper_mesh(site))
+                if site.calyx is not None:
+                    calyx_of[key] = len(calyx_templates)
+                    calyx_templates.append(calyx_mesh(site))
+            stalk_end = np.asarray(site.peduncle.points[-1], dtype=float)
+            scaled = np.eye(4)
+            scaled[:3, :3] *= pepper.scale
+            scaled[:3, 3] = (1.0 - pepper.scale) * stalk_end
+            transform = moved @ scaled
+            skin = "pepper" if pepper.ripeness is None else "fruit"
+            alpha = 1.0 if pepper.ripeness is None else pepper.ripeness
+            by_material.setdefault(f"{skin}_{pepper.color}", []).append((sites[key], transform, pepper.rgb, alpha, pepper.id))
+            if key in calyx_of:
+                calyces.append((calyx_of[key], transform))
+    objects = []
+    for material, fruit in sorted(by_material.items()):
+        template, transforms, rgb, alpha, ids = zip(*fruit)
+        objects.append(SceneObject(f"copied_{material}", material=material, smooth=True, instances=Instances(
+            templates=tuple(fruit_templates), template=np.array(template), transforms=np.array(transforms),
+            rgb=np.array(rgb, dtype=float), alpha=np.array(alpha, dtype=float), pass_index=np.array(ids))))
+    if calyces:
+        template, transforms = zip(*calyces)
+        objects.append(SceneObject("copied_calyces", material="calyx", smooth=True, instances=Instances(
+            templates=tuple(calyx_templates), template=np.array(template), transforms=np.array(transforms),
+            rgb=np.ones((len(template), 3)), alpha=np.ones(len(template)))))  # as an object of no colour of its own
+    return objects
+
+
+def expand_groups(objects: Sequence[SceneObject | Group]) -> list[SceneObject]:
+    """Plain objects for a view without groups: each object of a group becomes copies of its triangles (a template
+    of one mesh) at the group's poses, in its flat display colour, so the copies still share one mesh."""
+    out = []
+    for item in objects:
+        if not isinstance(item, Group):
+            out += _own_objects(item)
+            continue
+        count = len(item.transforms)
+        for obj in item.objects:
+            mesh = obj.triangles()
+            if not len(mesh.faces):
+                continue
+            alpha = float(np.mean(obj.instances.alpha)) if obj.instances is not None and len(obj.instances.alpha) else obj.alpha
+            instances = Instances(
+                templates=(mesh,), template=np.zeros(count, dtype=int), transforms=np.asarray(item.transforms, dtype=float),
+                rgb=np.tile(obj.display_rgba()[:3], (count, 1)), alpha=np.full(count, alpha),
+                template_rgb=None if obj.vertex_rgb is None else (np.asarray(obj.vertex_rgb, dtype=float),))
+            out.append(SceneObject(obj.name, material=obj.material, pass_index=obj.pass_index, smooth=obj.smooth,
+                                   instances=instances))
+    return out
+
+
+def _own_objects(item: SceneObject) -> list[SceneObject]:
+    """`item`, or, for copies that each carry their own instance id (the copies' fruit), one object per copy: a view
+    without groups tells instances apart by object."""
+    copies = item.instances
+    if copies is None or copies.pass_index is None:
+        return [item]
+    own = []
+    for index, transform, rgb, alpha, pass_index in zip(copies.template, copies.transforms, copies.rgb, copies.alpha,
+                                                         copies.pass_index):
+        mesh = copies.templates[int(index)].transformed(transform[:3, :3], transform[:3, 3])
+        own.append(SceneObject(f"pepper_{int(pass_index)}", mesh, item.material, pass_index=int(pass_index),
+                               rgb=tuple(float(c) for c in rgb), smooth=item.smooth, alpha=float(alpha)))
+    return own
+
+
+def greenhouse_objects(scene: Scene, groups: bool = False) -> list[SceneObject] | list[SceneObject | Group]:
     """What the renderers draw: the static objects, then per plant one pot, one stem, one leaf and
     one flower object, the calyces, and one object per pepper (its pass_index is its id). A 'simple'
     plant's leaves are one mesh with per-vertex colours; a 'pepper' plant's are copies of the leaf
     templates (`Instances`), each fruit of its has the 'fruit_' material and its ripe share as alpha.
+    Plants that are copies of prototypes come after the others: each prototype's body once, as a `Group` stood at
+    its copies' poses (`groups`; else expanded by `expand_groups`), and the copies' own fruit, stalks and calyces.
     In a 'film' environment the room's floor and walls give way to the greenhouse round it (the walls stay in
     the physics world: the flight volume's fence)."""
-    objects = static_objects(scene)
+    objects: list[SceneObject | Group] = list(static_objects(scene))
     if scene.environment is not None:
         objects = [obj for obj in objects if obj.name not in ("floor", "walls")] + environment_objects(scene)
     for plant in scene.plants:
+        if plant.is_copy:
+            continue
         peppers = scene.peppers_of(plant.id)
         parts = plant_meshes(plant, peppers)
-        objects.append(SceneObject(f"pot_{plant.id}", parts.pot, "pot"))
-        objects.append(SceneObject(f"stem_{plant.id}", parts.stem, "stem", smooth=True))
-        own = [(leaf, m) for leaf, m in zip(plant.leaves, parts.leaves) if leaf.template is None]
-        if own:
-            colors = np.concatenate([np.tile(leaf.rgb, (len(m.vertices), 1)) for leaf, m in own])
-            objects.append(SceneObject(f"leaves_{plant.id}", meshes.merge([m for _, m in own]), "leaf", smooth=True,
-                                       vertex_rgb=colors))
-        copies = [leaf for leaf in plant.leaves if leaf.template is not None]
-        if copies:
-            instances = Instances(
-                templates=tuple(leaf_template(i) for i in range(len(LEAF_SHAPES))),
-                template=np.array([leaf.template for leaf in copies]),
-                transforms=np.array([leaf_transform(leaf) for leaf in copies]),
-                rgb=np.array([leaf.rgb for leaf in copies]),
-                alpha=np.array([leaf.dust or 0.0 for leaf in copies]),
-            )
-            objects.append(SceneObject(f"leaf_copies_{plant.id}", material="pepper_leaf", smooth=True, instances=instances))
-        if parts.flowers is not None:
-            objects.append(SceneObject(f"flowers_{plant.id}", parts.flowers, "flower"))
+        objects += _plant_body(plant, str(plant.id), parts)
         if parts.calyces is not None:
             objects.append(SceneObject(f"calyces_{plant.id}", parts.calyces, "calyx", smooth=True))
-        for pepper in peppers:
-            skin = "pepper" if pepper.ripeness is None else "fruit"
-            objects.append(SceneObject(f"pepper_{pepper.id}", parts.peppers[pepper.id], f"{skin}_{pepper.color}",
-                                       pass_index=pepper.id, rgb=tuple(pepper.rgb), smooth=True,
-                                       alpha=1.0 if pepper.ripeness is None else pepper.ripeness))
-    return objects
+        objects += _fruit(peppers, parts)
+    objects += _copied_plants(scene)
+    return objects if groups else expand_groups(objects)
 
 
 def collision_objects(scene: Scene) -> list[SceneObject]:

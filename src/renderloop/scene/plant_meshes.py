@@ -97,7 +97,10 @@ def calyx_mesh(pepper: Pepper) -> Mesh:
 
 
 def plant_meshes(plant: Plant, peppers: list[Pepper]) -> PlantMeshes:
-    tubes = [plant.stem, *plant.branches, *(pepper.peduncle for pepper in peppers)]
+    """A plant's parts in the world. A copy of a prototype (`plant.prototype`) has no stem, branches, leaves or
+    flowers of its own: its parts here are its pot, its fruit with their stalks and calyces; its body is its
+    prototype's (`Scene.body`), which `scene/objects.py` stands in its place."""
+    tubes = [*([plant.stem] if plant.stem is not None else []), *plant.branches, *(pepper.peduncle for pepper in peppers)]
     stem = meshes.merge([meshes.tube(np.array(t.points), t.radius) for t in tubes])
     flowers = [meshes.flower(flower.center, flower.normal, flower.radius) for flower in plant.flowers]
     calyces = [calyx_mesh(pepper) for pepper in peppers if pepper.calyx is not None]

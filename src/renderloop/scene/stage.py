@@ -10,6 +10,7 @@ from renderloop.config import Config
 from renderloop.io.atomic import write_text
 from renderloop.rundir import files, names
 from renderloop.rundir.stage import Job, Stage, claim
+from renderloop.scene.capacity import check_capacity
 from renderloop.scene.generate import generate_scene
 from renderloop.scene.model import write_scene
 from renderloop.scene.topview import draw_top_view
@@ -23,7 +24,9 @@ def _same_config(run_dir: Path, config: Config) -> bool:
 
 
 def _scene(run_dir: Path, config: Config, job: Job) -> None:
-    """Everything is generated and checked in memory first, so bad input leaves no file behind."""
+    """Everything is generated and checked in memory first, so bad input leaves no file behind; a greenhouse this
+    machine cannot hold is refused before anything is grown."""
+    check_capacity(config, run_dir)
     scene = generate_scene(config)
     world = world_xml(scene, config)
     mujoco.MjModel.from_xml_string(world)  # a world MuJoCo rejects must never reach the disk

@@ -10,13 +10,14 @@ import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.collections import PolyCollection  # noqa: E402
+from matplotlib.collections import PatchCollection, PolyCollection  # noqa: E402
 from matplotlib.patches import Circle, Rectangle  # noqa: E402
 
 from renderloop.io.atomic import atomic_path  # noqa: E402
-from renderloop.scene.model import Plant, Scene  # noqa: E402
+from renderloop.scene.model import Plant, Scene, placement  # noqa: E402
 from renderloop.scene.plant_meshes import leaf_template, leaf_transform, plant_meshes  # noqa: E402
 
+ZOOM_PLANTS = 8  # plants of the enlarged row drawn leaf by leaf: the first of a long row, all of a short one
 PEPPER_FACE = {"red": "#c81e14", "yellow": "#f0c20a", "orange": "#f07814", "green": "#3c9a28"}
 
 
@@ -84,21 +85,28 @@ def _draw_environment(axes, scene: Scene) -> float:
 
 
 def _draw_plants(axes, scene: Scene, plants: list[Plant], detailed: bool) -> None:
+    """Each plant's box, pot, fruit and (`detailed`) leaf blades; without detail, the leaves of a plant grown in its
+    place as strokes, and none of a copy of a prototype (a compartment's thousand copies would take minutes)."""
+    # Boxes, pots and fruit go in as collections: a patch added alone updates the axes' limits from its curves, which
+    # for a compartment's ten thousand fruit takes a minute.
+    boxes, pots, fruit = [], [], []
     for plant in plants:
         low, high = plant.bounds.min, plant.bounds.max
-        axes.add_patch(Rectangle(low[:2], high[0] - low[0], high[1] - low[1], fill=False, ls=":", ec="#2a7a2a", lw=0.8))
-        axes.add_patch(Circle(plant.position[:2], plant.pot.radius_top, fc="0.2", alpha=0.5))
+        boxes.append(Rectangle(low[:2], high[0] - low[0], high[1] - low[1], fill=False, ls=":", ec="#2a7a2a", lw=0.8))
+        pots.append(Circle(plant.position[:2], plant.pot.radius_top, fc="0.2", alpha=0.5))
         if detailed:  # leaf blades seen from above, lowest first: a blade of its own by its triangles, a copy of a template by its outline
-            parts = plant_meshes(plant, [])
+            body = scene.body(plant)
+            moved = placement(plant, body) if plant.is_copy else np.eye(4)
+            parts = plant_meshes(body, [])
             order = sorted(range(len(parts.leaves)), key=lambda i: parts.leaves[i].vertices[:, 2].mean())
             polygons, colors = [], []
             for i in order:
-                leaf, mesh = plant.leaves[i], parts.leaves[i]
+                leaf, mesh = body.leaves[i], parts.leaves[i]
                 if leaf.template is None:
-                    polygons += list(mesh.vertices[mesh.faces][:, :, :2])
+                    polygons += list((mesh.vertices @ moved[:3, :3].T + moved[:3, 3])[mesh.faces][:, :, :2])
                     colors += [leaf.rgb] * len(mesh.faces)
                 else:
-                    transform = leaf_transform(leaf)
+                    transform = moved @ leaf_transform(leaf)
                     polygons.append((_outline(leaf.template) @ transform[:3, :3].T + transform[:3, 3])[:, :2])
                     colors.append(leaf.rgb)
             axes.add_collection(PolyCollection(polygons, facecolors=colors, lw=0, alpha=0.9))
@@ -108,10 +116,13 @@ def _draw_plants(axes, scene: Scene, plants: list[Plant], detailed: bool) -> Non
                 tip = [leaf.base[i] + leaf.direction[i] * leaf.length for i in range(2)]
                 axes.plot([leaf.base[0], tip[0]], [leaf.base[1], tip[1]], color=leaf.rgb, lw=1.2, alpha=0.8)
         for pepper in scene.peppers_of(plant.id):
-            axes.add_patch(Circle(pepper.center[:2], pepper.radius, fc=PEPPER_FACE[pepper.color],
-                                  ec="k" if pepper.ripe else "#1a4a10", lw=0.6, zorder=3))
+            fruit.append(Circle(pepper.center[:2], pepper.radius, fc=PEPPER_FACE[pepper.color],
+                                ec="k" if pepper.ripe else "#1a4a10", lw=0.6))
             if detailed:
                 axes.annotate(str(pepper.id), pepper.center[:2], ha="center", va="center", fontsize=6, color="w", zorder=4)
+    for patches, zorder in ((boxes, 1), (pots, 1), (fruit, 3)):
+        if patches:
+            axes.add_collection(PatchCollection(patches, match_original=True, zorder=zorder))
 
 
 def draw_top_view(scene: Scene, path: Path) -> None:
@@ -131,9 +142,14 @@ def draw_top_view(scene: Scene, path: Path) -> None:
     row = max(scene.rows, key=lambda r: sum(len(scene.peppers_of(plant_id)) for plant_id in r.plants))
     table = row.table
     zoom.add_patch(_rectangle(table.center, table.size, fc="0.85", ec="0.5"))
-    _draw_plants(zoom, scene, [scene.plant(plant_id) for plant_id in row.plants], detailed=True)
+    shown = [scene.plant(plant_id) for plant_id in row.plants[:ZOOM_PLANTS]]
+    _draw_plants(zoom, scene, shown, detailed=True)
     zoom.set_xlim(table.center[0] - 0.45, table.center[0] + 0.45)
-    zoom.set_ylim(table.center[1] - table.size[1] / 2 - 0.05, table.center[1] + table.size[1] / 2 + 0.05)
+    if len(shown) < len(row.plants):  # a long row: its first plants, from the table's end
+        start = table.center[1] - table.size[1] / 2
+        zoom.set_ylim(start - 0.05, max(p.bounds.max[1] for p in shown) + 0.05)
+    else:
+        zoom.set_ylim(table.center[1] - table.size[1] / 2 - 0.05, table.center[1] + table.size[1] / 2 + 0.05)
     zoom.set_title(f"row {row.id} (pepper ids; left side is -x)")
     for axes in (overview, zoom):
         axes.set_aspect("equal")

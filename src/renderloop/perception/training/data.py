@@ -2,16 +2,20 @@
 
 Augmentation is the SSD recipe (torchvision's v2 transforms carry the boxes along):
 photometric distortion, zoom out (smaller fruit on a padded canvas), IoU-constrained
-random crops (larger fruit, fruit cut by the border), horizontal flips. Fruit
+random crops (larger fruit, fruit cut by the border), horizontal flips; then what a
+real camera does to a photo and a render lacks: defocus blur, sensor noise and JPEG
+compression, each on a share of the images. Fruit
 marked iscrowd (tiny or mostly hidden, see `renderloop.dataset.labels`) are not targets.
 """
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 
 import torch
+from PIL import Image
 
 from renderloop.errors import UserError
 from renderloop.io.images import check_image, open_image
@@ -23,6 +27,16 @@ from torchvision import tv_tensors
 from torchvision.transforms import v2
 
 FILL = (110, 115, 110)  # zoom-out canvas: the greenhouse's mean grey-green
+# JPEG through Pillow: torchvision's own JPEG transform needs the compiled image ops a CPU-only torch lacks.
+JPEG_SHARE, JPEG_QUALITY = 0.3, (40, 95)
+
+
+def jpeg_compressed(picture: Image.Image, quality: int) -> Image.Image:
+    """The picture as a camera's JPEG of this quality would give it back: blocks, ringing, smeared colour."""
+    buffer = io.BytesIO()
+    picture.save(buffer, format="JPEG", quality=quality)
+    buffer.seek(0)
+    return Image.open(buffer).convert("RGB")
 
 
 def read_coco(path: Path) -> dict:
@@ -41,17 +55,22 @@ class _Boxes(torch.utils.data.Dataset):
     the validation's results are matched to the labels by), as SSD's samples."""
 
     def __init__(self, samples: list[tuple[Path, list[list[float]], list[int], int]], augment: bool) -> None:
-        self.samples = samples
-        steps = [v2.RandomPhotometricDistort(p=0.5), v2.RandomZoomOut(fill=FILL, side_range=(1.0, 2.0), p=0.3),
-                 v2.RandomIoUCrop(), v2.RandomHorizontalFlip()] if augment else []
-        self.transform = v2.Compose([*steps, v2.ToDtype(torch.float32, scale=True), v2.SanitizeBoundingBoxes()])
+        self.samples, self.augment = samples, augment
+        geometry = [v2.RandomPhotometricDistort(p=0.5), v2.RandomZoomOut(fill=FILL, side_range=(1.0, 2.0), p=0.3),
+                    v2.RandomIoUCrop(), v2.RandomHorizontalFlip(),
+                    v2.RandomApply([v2.GaussianBlur(5, sigma=(0.1, 1.5))], p=0.2)] if augment else []
+        noise = [v2.RandomApply([v2.GaussianNoise(sigma=0.02, clip=True)], p=0.2)] if augment else []
+        self.transform = v2.Compose([*geometry, v2.ToDtype(torch.float32, scale=True), *noise, v2.SanitizeBoundingBoxes()])
 
     def __len__(self) -> int:
         return len(self.samples)
 
     def __getitem__(self, index: int) -> tuple[torch.Tensor, dict]:
         path, boxes, labels, image_id = self.samples[index]
-        image = tv_tensors.Image(v2.functional.pil_to_tensor(open_image(path, "RGB")))
+        picture = open_image(path, "RGB")
+        if self.augment and float(torch.rand(())) < JPEG_SHARE:
+            picture = jpeg_compressed(picture, int(torch.randint(JPEG_QUALITY[0], JPEG_QUALITY[1] + 1, ())))
+        image = tv_tensors.Image(v2.functional.pil_to_tensor(picture))
         target = {
             "boxes": tv_tensors.BoundingBoxes(torch.tensor(boxes, dtype=torch.float32).reshape(-1, 4), format="XYXY",
                                               canvas_size=tuple(image.shape[-2:])),
