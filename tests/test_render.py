@@ -173,12 +173,10 @@ def test_unknown_backend_and_unanswering_ray(flown: Path):
 
 
 def test_a_render_that_cannot_fit_on_the_disk_is_refused_before_its_first_frame(flown: Path, monkeypatch):
-    import shutil
-
-    from renderloop.render import stage as render_stage
+    from renderloop.io import disk
 
     usage = shutil.disk_usage(flown)
-    monkeypatch.setattr(render_stage.shutil, "disk_usage", lambda _: usage._replace(free=10_000))
+    monkeypatch.setattr(disk.shutil, "disk_usage", lambda _: usage._replace(free=10_000))
     with pytest.raises(UserError, match=r"frames of 320x240 need up to 0\.\d GB but the disk has 0\.0 GB free"):
         run_render(flown, read_config(flown))
     assert not (flown / "rgb").exists() and not (flown / "rgb.txt").exists()

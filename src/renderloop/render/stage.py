@@ -10,7 +10,6 @@ inputs never mix and nothing else in the directory is touched.
 from __future__ import annotations
 
 import hashlib
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,7 @@ import numpy as np
 from renderloop.config import Config
 from renderloop.errors import UserError
 from renderloop.io import ownership
+from renderloop.io.disk import free_bytes
 from renderloop.render.camera import Intrinsics, write_camera_info
 from renderloop.render.contact_sheet import draw_contact_sheet
 from renderloop.render.executor import blurs_motion, render_frames
@@ -60,7 +60,7 @@ def _same_record(run_dir: Path, config: Config) -> bool:
 def check_disk(run_dir: Path, config: Config, frames: int) -> None:
     """Refuse, before the first frame, a render whose frames cannot fit on the disk."""
     need = frames * config.camera.width * config.camera.height * sum(BYTES_PER_PIXEL[s] for s in streams_of(config))
-    free = shutil.disk_usage(run_dir).free
+    free = free_bytes(run_dir)
     if need > free:
         raise UserError(f"{run_dir}: {frames} frames of {config.camera.width}x{config.camera.height} need up to "
                         f"{need / 1e9:.1f} GB but the disk has {free / 1e9:.1f} GB free; lower camera.rate_hz or the image size")

@@ -9,12 +9,12 @@ asks here first and refuses in one line with the estimate. The figures are upper
 from __future__ import annotations
 
 import os
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
 from renderloop.config import Config
 from renderloop.errors import UserError
+from renderloop.io.disk import free_bytes
 
 __all__ = ["Estimate", "available_memory", "check_capacity", "estimate"]
 
@@ -66,19 +66,12 @@ def available_memory() -> float:
     return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
 
 
-def _free_disk(run_dir: Path) -> float:
-    place = Path(run_dir).resolve()
-    while not place.exists() and place != place.parent:
-        place = place.parent
-    return float(shutil.disk_usage(place).free)
-
-
 def check_capacity(config: Config, run_dir: Path, memory: float | None = None, disk: float | None = None) -> Estimate:
     """Refuse, in one line with the estimate, a greenhouse this machine cannot build: more memory than it has
     available (`memory`, bytes; default: now) or more disk than is free under `run_dir` (`disk`)."""
     need = estimate(config)
     memory = available_memory() if memory is None else memory
-    disk = _free_disk(run_dir) if disk is None else disk
+    disk = free_bytes(run_dir) if disk is None else disk
     size = (f"{need.plants} plants ({need.grown} grown, the rest copies; up to {need.fruit} fruit) need about "
             f"{need.memory / 1e9:.2f} GB of memory and {need.disk / 1e6:.0f} MB of disk")
     if need.memory > memory:
