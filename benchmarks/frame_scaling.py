@@ -41,6 +41,7 @@ from renderloop.scene.visible import farthest_seen, visible_scene
 import bpy
 
 config = load_config(preset, seed=0).override({
+    "planner": {"row": 1 if preset == "commercial" else None},  # a mission of one line: line 1, from the middle path
     "camera": {"width": width, "height": height},
     "renderer": {"backend": "cycles", "samples": samples, "denoise": False, "device": "cpu"}})
 start = time.perf_counter()

@@ -8,14 +8,17 @@ time and peak resident memory, and the sizes of scene.json and world.xml. A row 
 each with the aisles the preset's single row has.
 
     .venv/bin/python benchmarks/scene_scaling.py [--sizes 5,40,200,1000] [--no-save]
+    .venv/bin/python benchmarks/scene_scaling.py --plot-only    # redraw the plot from the stored results
 
 Targets: 1000 plants within 60 s and 1 GB on 2 cores; 40 plants within 1.5 times the time of 5; scene.json under
-5 MB at 1000 plants.
+5 MB at 1000 plants. After saving its results to benchmarks/results/scene_scaling.json it draws them, with the
+targets, into docs/images/scene_scaling.png; `--plot-only` redraws that picture from the stored results alone.
 """
 
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import math
 import os
@@ -26,13 +29,17 @@ import time
 from pathlib import Path
 
 import yaml
-from common import as_table, save_result
+from common import RESULTS, as_table, save_result
+
+from renderloop.io.atomic import write_bytes
 
 ROOT = Path(__file__).resolve().parents[1]
 ROW_PITCH = 3.4  # m: the greenhouse preset's compartment is this wide round its one row
 MOST_PER_ROW = 200
 SPACING = 0.5  # m: the preset's plant spacing
 ENDS = 3.9  # m of room beyond a row's plants: the preset's 6.4 m room round its 2.5 m row
+PLOT = ROOT / "docs" / "images" / "scene_scaling.png"
+TARGET_S, TARGET_MB, TARGET_JSON_MB = 60.0, 1000.0, 5.0  # at 1000 plants: the docstring's targets
 
 CHILD = """
 import json, sys, time
@@ -90,11 +97,72 @@ COLUMNS = {"plants": "plants", "rows": "rows", "prototypes": "prototypes (0: eac
            "scene_json_mb": "scene.json, MB", "world_xml_mb": "world.xml, MB", "load_1min": "machine load"}
 
 
+def plot(results: Path, out: Path) -> Path:
+    """Draw the stored results against plants (log x), with the targets as dotted lines, into a small PNG at `out`.
+
+    The picture is drawn only from the results file, so it always shows the figures the docs' table shows.
+    """
+    try:
+        record = json.loads(results.read_text(encoding="utf-8"))
+        table = record["figures"]["table"]
+        column = {heading: [row[i] for row in table["rows"]] for i, heading in enumerate(table["columns"])}
+        series = {key: column[COLUMNS[key]] for key in ("plants", "stage_s", "process_s", "peak_rss_mb", "scene_json_mb")}
+    except OSError as error:
+        raise SystemExit(f"cannot read {results}: {error.strerror}; run benchmarks/scene_scaling.py first")
+    except (ValueError, KeyError, TypeError, IndexError) as error:
+        reason = f"it lacks {error}" if isinstance(error, KeyError) else str(error)
+        raise SystemExit(f"{results} is not a scene_scaling results file: {reason}")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    plants = series["plants"]
+    figure, axes = plt.subplots(1, 3, figsize=(9, 2.8))
+    panels = (
+        (axes[0], (("stage_s", "scene stage", "o-"), ("process_s", "whole process", "s--")), "seconds", TARGET_S, "60 s"),
+        (axes[1], (("peak_rss_mb", "peak memory", "o-"),), "peak memory, MB", TARGET_MB, "1 GB"),
+        (axes[2], (("scene_json_mb", "scene.json", "o-"),), "scene.json, MB", TARGET_JSON_MB, "5 MB"),
+    )
+    for axis, lines, label, target, said in panels:
+        for key, name, style in lines:
+            axis.plot(plants, series[key], style, color="#1f3b73" if style == "o-" else "#6b8cc7", label=name, markersize=4)
+        axis.axhline(target, color="#c0392b", linestyle=":", linewidth=1.2)
+        axis.annotate(f"target at 1000 plants: {said}", (0.03, target), xycoords=("axes fraction", "data"),
+                      textcoords="offset points", xytext=(0, -10), fontsize=7, color="#c0392b")
+        axis.set_xscale("log")
+        axis.set_xticks(plants, [str(p) for p in plants])
+        axis.minorticks_off()
+        axis.set_ylim(0, target * 1.1)
+        axis.set_xlabel("plants", fontsize=8)
+        axis.set_ylabel(label, fontsize=8)
+        axis.tick_params(labelsize=7)
+        axis.grid(alpha=0.3)
+    axes[0].legend(fontsize=7, loc="center left")
+    figure.suptitle(f"Measured {record.get('date', 'unknown')} on {record.get('machine', 'an unknown machine')}", fontsize=7)
+    figure.tight_layout()
+    drawn = io.BytesIO()
+    figure.savefig(drawn, format="png", dpi=110)
+    plt.close(figure)
+    # A few line colours on white: a 32-colour palette keeps the PNG small without visible loss.
+    small = io.BytesIO()
+    Image.open(drawn).convert("RGB").quantize(colors=32).save(small, format="PNG", optimize=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_bytes(out, small.getvalue())
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="5,40,200,1000", help="plant counts, comma-separated")
     parser.add_argument("--no-save", action="store_true", help="print only; do not write benchmarks/results/")
+    parser.add_argument("--plot-only", action="store_true",
+                        help=f"measure nothing: redraw {PLOT.relative_to(ROOT)} from benchmarks/results/scene_scaling.json")
     args = parser.parse_args()
+    if args.plot_only:
+        print(plot(RESULTS / "scene_scaling.json", PLOT))
+        return
     table = []
     for plants in (int(size) for size in args.sizes.split(",")):
         table.append(measure(plants))
@@ -106,7 +174,9 @@ def main() -> None:
         figures["process_40_over_5"] = round(by_size[40]["process_s"] / by_size[5]["process_s"], 2)
     print(json.dumps({key: value for key, value in figures.items() if key != "table"}))
     if not args.no_save:
-        print(save_result("scene_scaling", figures))
+        stored = save_result("scene_scaling", figures)
+        print(stored)
+        print(plot(stored, PLOT))
 
 
 if __name__ == "__main__":

@@ -29,8 +29,9 @@ def commercial():
 
 @pytest.fixture(scope="module")
 def scan(commercial):
+    """The mission of line 1, the inner line of the west double row, from the middle path."""
     config, scene = commercial
-    return [w for w in plan_waypoints(scene, config) if w.kind == "scan"]
+    return [w for w in plan_waypoints(scene, config.override({"planner": {"row": 1}})) if w.kind == "scan"]
 
 
 def _digest(waypoints) -> str:
@@ -44,10 +45,10 @@ def test_the_default_planner_plans_the_demo_and_paper_scans_as_before(preset, se
     assert _digest(plan_waypoints(scene, config)) == PLANS[(preset, seed)]
 
 
-def test_the_commercial_preset_scans_every_plant_of_its_one_line_from_the_path_beside_it(commercial, scan):
+def test_a_mission_of_the_commercial_preset_scans_every_plant_of_its_line_from_the_path_beside_it(commercial, scan):
     config, scene = commercial
     line = scene.rows[1]
-    assert config.planner.row == 1
+    assert config.mission.split == "rows" and config.planner.row is None  # the compartment, a mission a line
     assert {w.plant for w in scan} == set(line.plants)
     assert {w.side for w in scan} == {"right"}  # the path to +x; its double row's other line stands 0.4 m to -x
     per_plant = config.planner.bands * config.planner.points_per_ellipse
@@ -73,13 +74,13 @@ def test_every_line_of_the_compartment_can_be_scanned_from_its_aisle(commercial)
         assert {w.plant for w in scan} == set(row.plants) and len({w.side for w in scan}) == 1
 
 
-def test_a_row_without_an_aisle_and_a_row_the_scene_lacks_are_refused(commercial):
+def test_a_row_without_an_aisle_and_a_row_the_greenhouse_lacks_are_refused(commercial):
     config, scene = commercial
     # 2 m from its axis, the line's scan would stand in the next line's gutter on one side and past the wall on the other
     with pytest.raises(UserError, match=r"planner.distance: scan waypoints of plant \d+ come within 0.64 m"):
         plan_waypoints(scene, config.override({"planner": {"distance": 2.0}}))
-    with pytest.raises(UserError, match=r"planner.row: the scene has no row 4 \(its rows are 0 to 3\)"):
-        plan_waypoints(scene, config.override({"planner": {"row": 4}}))
+    with pytest.raises(UserError, match=r"planner.row: the greenhouse has 4 rows \(0 to 3\), not 4"):
+        config.override({"planner": {"row": 4}})
     with pytest.raises(UserError, match=r"planner.distance: scan waypoints of plant \d+ come within"):
         plan_waypoints(scene, config.override({"planner": {"sides": "both"}}))
 

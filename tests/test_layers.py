@@ -27,6 +27,7 @@ LAYERS = [
     ["loop"],
     ["__init__", "pipeline"],
     ["dataset", "evaluation", "export", "report"],
+    ["fleet"],
     ["cli"],
     ["__main__"],
 ]

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import shutil
 import sys
+import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
@@ -530,17 +531,34 @@ def show_config(
 @app.command()
 def run(out: Out, preset: Preset = "demo", config: ConfigFile = None, seed: Seed = None, force: Force = False,
         online: Annotated[bool, typer.Option("--online", help="Render and detect while flying (mission.online).")] = False,
-        mission: MissionKind = None) -> None:
-    """Run every stage of the pipeline in order, skipping stages that are already complete; then write report.html."""
-    from renderloop.pipeline import run_pipeline
-    from renderloop.report.html import write_report
+        mission: MissionKind = None,
+        workers: Annotated[int, typer.Option(min=1, max=1024, help="Renderer processes; with mission.split: rows, "
+                                             "rows' missions at once (processes, or Ray tasks).")] = 1,
+        executor: Executor = "local",
+        address: Address = None) -> None:
+    """Run every stage of the pipeline in order, skipping stages that are already complete; then write report.html
+    (with mission.split: rows, one run a row in OUT/rows and the compartment's counts.json, harvest.json, fleet.json)."""
+    from renderloop.parallel import Executor as Parallel
     from renderloop.report.words import run_summary
     from renderloop.rundir.files import read_counts
 
     resolved = load_config(preset, config, seed, online=online or None, mission=mission)
-    seconds = run_pipeline(out, resolved, force, Console(stderr=True))
-    page = write_report(out, only_if_stale=True)  # not a stage: a report newer than every file it shows is kept
-    typer.echo(f"run: {out} ({sum(seconds.values()):.1f} s)")
+    parallel = Parallel.of(executor, workers, address)
+    start = time.perf_counter()
+    if resolved.mission.split == "rows":
+        from renderloop.fleet.compartment import run_compartment
+        from renderloop.rundir import names
+
+        with _progress_bar("rows") as progress:
+            run_compartment(out, resolved, force, parallel, progress)
+        page = out / names.ROW_RUNS / "row_*" / names.REPORT  # each row's run has its report
+    else:
+        from renderloop.pipeline import run_pipeline
+        from renderloop.report.html import write_report
+
+        run_pipeline(out, resolved, force, Console(stderr=True), parallel)
+        page = write_report(out, only_if_stale=True)  # not a stage: a report newer than every file it shows is kept
+    typer.echo(f"run: {out} ({time.perf_counter() - start:.1f} s)")
     for line in run_summary(read_counts(out), page):
         typer.echo(line)
 

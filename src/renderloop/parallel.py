@@ -61,6 +61,11 @@ class Executor(Strict):
         """Render threads each worker takes: the cores shared out among the workers (0, all of them, for one)."""
         return 0 if self.workers <= 1 else max(1, (os.cpu_count() or 1) // self.workers)
 
+    def check_answers(self) -> None:
+        """Refuse, in one line, a Ray address no cluster answers at: for a caller that must know before it works."""
+        if self.kind == "ray" and self.address:
+            _check_answers(self.address)
+
     def share_cores(self, config: Config) -> Config:
         """`config` rendering on one worker's share of the cores, unless the config sets its own thread count."""
         if config.renderer.threads or not self.threads:

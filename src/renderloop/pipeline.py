@@ -22,6 +22,7 @@ from rich.progress import (
 from renderloop.config import Config
 from renderloop.counting import stage as count_stage
 from renderloop.loop import stage as online_stage
+from renderloop.parallel import LOCAL, Executor
 from renderloop.perception import stage as detect_stage
 from renderloop.perception.detector import Detector
 from renderloop.planning import stage as plan_stage
@@ -53,8 +54,10 @@ def check_inputs(config: Config) -> None:
     Detector(config.detector.model)
 
 
-def run_pipeline(run_dir: Path, config: Config, force: bool = False, console: Console | None = None) -> dict[str, float]:
-    """Run every stage; returns the seconds each one took (0 when it was skipped)."""
+def run_pipeline(run_dir: Path, config: Config, force: bool = False, console: Console | None = None,
+                 executor: Executor = LOCAL, stages: tuple[Stage, ...] | None = None) -> dict[str, float]:
+    """Run every stage (or `stages`, in their order); returns the seconds each one took (0 when it was skipped). The
+    stages that spread work (the batch render) spread it on `executor`."""
     claim(run_dir, write=False)  # a directory that is not ours is refused before the progress display starts
     if not force:
         check_config(run_dir, config)  # so is one made with another config, naming the fields that differ
@@ -64,11 +67,11 @@ def run_pipeline(run_dir: Path, config: Config, force: bool = False, console: Co
     columns = (TextColumn("{task.description:<28}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                TimeElapsedColumn(), TimeRemainingColumn())
     with Progress(*columns, console=console, transient=False) as progress:
-        for stage in stages_of(config):
+        for stage in stages or stages_of(config):
             task = progress.add_task(stage.name, total=1)
             start = time.perf_counter()
             report = lambda done, total, task=task: progress.update(task, completed=done, total=total)  # noqa: E731
-            ran = stage.run(run_dir, config, force, report)
+            ran = stage.run(run_dir, config, force, report, executor)
             seconds[stage.name] = time.perf_counter() - start if ran else 0.0
             note = "done" if ran else "complete, skipped"
             total = progress.tasks[task].total or 1

@@ -76,6 +76,11 @@ class Config(Strict):
         grown = min(total, self.plants.prototypes)  # more plants than prototypes: copies, whose leaves are their prototype's
         if grown * self.plants.most_leaves > MAX_LEAVES:
             raise ValueError(f"{self.plants.leaves_field}: {grown} plants of up to {self.plants.most_leaves} leaves are more than {MAX_LEAVES} leaves")
+        rows, row = len(self.greenhouse.tables), self.planner.row
+        if row is not None and row >= rows:
+            raise ValueError(f"planner.row: the greenhouse has {rows} rows (0 to {rows - 1}), not {row}")
+        if self.mission.uavs > 1 and self.mission.split != "rows":
+            raise ValueError(f"mission.uavs: {self.mission.uavs} UAVs share a scan split by rows; set mission.split: rows")
         if self.camera.rate_hz > self.controller.rate_hz:
             raise ValueError(f"camera.rate_hz: frames are taken at control ticks, so {self.camera.rate_hz:g} Hz cannot be "
                              f"served by a {self.controller.rate_hz:g} Hz controller")

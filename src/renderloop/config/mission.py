@@ -42,3 +42,10 @@ class MissionConfig(Strict):
                          "at its instants, perception runs on each frame as it arrives); same files and counts as the "
                          "batch stages fly, render, detect.")
     adaptive: AdaptiveConfig = Field(AdaptiveConfig(), description="The adaptive mission's settings.")
+    split: Literal["none", "rows"] = Field(
+        "none", description="none: one mission scans every row (or planner.row). rows: one mission a row, each a run "
+        "of its own in rows/row_<id> and a task of the executor, counted together into the compartment's counts.json "
+        "and harvest.json.")
+    uavs: Count(1, 64) = Field(
+        1, description="UAVs sharing the missions of a split scan (fleet.json says which flies which row when): each "
+        "flies one mission at a time, and no two fly in one aisle at once. More than 1 needs split: rows.")

@@ -102,3 +102,16 @@ def plant_of_center(scene: Scene, row: Row, center: np.ndarray, use_layout: bool
         return plants[int(np.lexsort((tie_break, distance))[0])].id
     stems = np.array([plant.position[:2] for plant in plants], dtype=float)
     return plants[int(np.argmin(np.linalg.norm(stems - center[0, :2], axis=1)))].id
+
+
+def rows_of_points(scene: Scene, points: np.ndarray, use_layout: bool, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """The row each point (N, 3) is counted in, and the row of the table nearest it. With the layout a point's row is
+    that of the plant whose grown volume holds it, NO_PLANT for a point in none (a false positive, shown beside the
+    nearest table's row); without it, the nearest table's."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    nearest = rows_by_table(scene, points)
+    if not use_layout:
+        return nearest, nearest
+    row_of_plant = {plant.id: plant.row for plant in scene.plants}
+    plants = plants_by_volume(scene, points, margin)
+    return np.array([row_of_plant.get(int(p), NO_PLANT) for p in plants], dtype=int), nearest

@@ -38,8 +38,7 @@ from renderloop.counting.assign import (
     NO_PLANT,
     lof_inliers,
     plant_of_center,
-    plants_by_volume,
-    rows_by_table,
+    rows_of_points,
 )
 from renderloop.rundir.models import DetectionFrame
 from renderloop.scene.model import Scene
@@ -261,13 +260,7 @@ def count_rows(scene: Scene, detections: np.ndarray, label: str, counting: Count
     online counter) then pays only for the rows whose detections changed.
     """
     detections = np.asarray(detections, dtype=float).reshape(-1, 3)
-    nearest_row = rows_by_table(scene, detections)
-    if counting.use_layout:
-        plant_ids = plants_by_volume(scene, detections, counting.volume_margin)
-        row_of_plant = {plant.id: plant.row for plant in scene.plants}
-        row_ids = np.array([row_of_plant.get(int(p), NO_PLANT) for p in plant_ids], dtype=int)
-    else:
-        row_ids = nearest_row
+    row_ids, nearest_row = rows_of_points(scene, detections, counting.use_layout, counting.volume_margin)
     params = params_from(counting)
     counts = []
     for row in scene.rows:

@@ -5,8 +5,9 @@ plant containers to a stationary manipulator workstation, and the mission planne
 acts on the per-plant counts. Here the plan is one round trip from the workstation
 through every plant expected to bear at least `min_ripe` ripe fruit: a travelling
 salesman tour built greedily (nearest neighbour) and improved by 2-opt until no
-segment reversal shortens it. Fewer than 40 plants make 2-opt instant and usually
-optimal or within a few per cent.
+segment reversal shortens it. The 2-opt move search is vectorised over the segment's far
+end, so a compartment of 1000 plants is planned in well under a second; below about 40
+plants the tour is usually optimal or within a few per cent.
 
 Distances are straight lines in x-y between the workstation centre and the plant
 positions (pot centres): the tables and the workstation are not routed around, so a
@@ -40,23 +41,55 @@ def nearest_neighbour(start: np.ndarray, stops: np.ndarray) -> list[int]:
     return order
 
 
+def _distances(x: float | np.ndarray, y: float | np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """Straight-line distances from (x, y) to each (xs, ys).
+
+    Elementwise products, sum and square root, each rounded once as IEEE prescribes, so a
+    distance is the same bits on every machine (a BLAS dot product may fuse them).
+    """
+    dx, dy = xs - x, ys - y
+    return np.sqrt(dx * dx + dy * dy)
+
+
 def two_opt(start: np.ndarray, stops: np.ndarray, order: list[int]) -> list[int]:
-    """Reverse tour segments while that shortens the closed tour (workstation fixed at both ends)."""
+    """Reverse tour segments while that shortens the closed tour (workstation fixed at both ends).
+
+    First improvement, in a fixed order: with the tour as path[0] = workstation, path[1..n] the
+    stops, path[n + 1] = workstation, positions i = 1 .. n - 1 are taken in turn, and for each
+    the far ends j = i + 1 .. n; the first (i, j) whose reversal of path[i..j] shortens the
+    tour by more than IMPROVEMENT is applied, and the scan goes on at (i, j + 1) on the new
+    tour. Sweeps repeat until one applies no move. The gains of all j for one i are computed
+    at once as arrays; the moves, and so the tour, are those of the same scan pair by pair.
+    """
     order = list(order)
+    path = np.vstack([start, stops[order], start]) if order else np.vstack([start, start])
+    xs, ys = path[:, 0].copy(), path[:, 1].copy()
+    slots = np.arange(len(order))  # slots[k]: the index into `order` of the stop at path[k + 1]
+    edge = _distances(xs[1:], ys[1:], xs[:-1], ys[:-1])  # edge[k]: |path[k] - path[k + 1]|
+    last = len(path) - 2  # the highest far end j: path[j + 1] is the workstation
     improved = True
     while improved:
         improved = False
-        path = np.vstack([start, stops[order], start])
-        for i in range(1, len(path) - 2):
-            for j in range(i + 1, len(path) - 1):
-                a, b, c, d = path[i - 1], path[i], path[j], path[j + 1]
-                before = np.linalg.norm(a - b) + np.linalg.norm(c - d)
-                after = np.linalg.norm(a - c) + np.linalg.norm(b - d)
-                if after < before - IMPROVEMENT:
-                    order[i - 1 : j] = order[i - 1 : j][::-1]
-                    path = np.vstack([start, stops[order], start])
-                    improved = True
-    return order
+        for i in range(1, last):
+            first = i + 1
+            while first <= last:
+                # a = path[i - 1], b = path[i], c = path[j], d = path[j + 1] for every j >= first
+                before = edge[i - 1] + edge[first : last + 1]
+                to_c = _distances(xs[i - 1], ys[i - 1], xs[first : last + 1], ys[first : last + 1])
+                to_d = _distances(xs[i], ys[i], xs[first + 1 :], ys[first + 1 :])
+                shorter = to_c + to_d < before - IMPROVEMENT
+                k = int(np.argmax(shorter))  # the first improving j, if any
+                if not shorter[k]:
+                    break
+                j = first + k
+                xs[i : j + 1] = xs[i : j + 1][::-1].copy()
+                ys[i : j + 1] = ys[i : j + 1][::-1].copy()
+                slots[i - 1 : j] = slots[i - 1 : j][::-1].copy()
+                edge[i:j] = edge[i:j][::-1].copy()
+                edge[i - 1], edge[j] = to_c[k], to_d[k]
+                improved = True
+                first = j + 1
+    return [order[slot] for slot in slots]
 
 
 def plan_harvest(scene: Scene, ripe_estimates: dict[int, int], min_ripe: int) -> dict:

@@ -2,23 +2,32 @@
 
 Points are in metres, world frame, rounded to the micrometre so that the same inputs
 and seed give the same bytes.
+
+A scan of some rows (`planner.row`) is counted and scored against those rows alone
+(`Scene.of_rows`): their plants, their fruit and the detections whose points belong to
+them, so the rows it never visited do not show as missed fruit. The compartment's count
+is then the merge of its rows' missions (`renderloop.counting.merge`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from renderloop.config import Config, CountingConfig
+from renderloop.counting.assign import NO_PLANT, rows_of_points
 from renderloop.counting.cluster import CLASSES, RowCount, class_points, count_rows
 from renderloop.counting.harvest import plan_harvest
-from renderloop.counting.uncertainty import LABEL, CountUncertainty, Uncertainty, uncertainty
+from renderloop.counting.uncertainty import LABEL, CountUncertainty, Uncertainty, stored_distribution, uncertainty
 from renderloop.counting.visibility import Seen
 from renderloop.rundir.models import Counts, Detections, Harvest
 from renderloop.scene.model import Scene
 
 DIGITS = 6  # metres to the micrometre: stable bytes, far below any noise
+SUMMED = ("estimate", "truth", "unripe_estimate", "unripe_truth")  # a row's and the total's, its plants' added up
 
 
 def _rounded(points: np.ndarray) -> list[list[float]]:
@@ -61,11 +70,28 @@ def _plant_uncertainty(scene: Scene, found: Uncertainty | None) -> dict[int, dic
             for plant_id, plant in found.plants.items()}
 
 
+def total_of(plants: Sequence[Mapping[str, Any]], interval: Mapping[str, Any] | None, misses: bool) -> dict[str, Any]:
+    """counts.json's `total` from its plant entries: their sums, the error, the share of plants counted exactly;
+    `interval` is the total's (None: counted without the intervals), and `misses` says the plants' `unseen` and
+    `too_small` are known, which adds the scan's misses and the error against the fruit it showed."""
+    total: dict[str, Any] = {key: sum(plant[key] for plant in plants) for key in SUMMED}
+    total["error_pct"] = _error_pct(total["estimate"], total["truth"])
+    total["exact_plants"] = round(sum(p["estimate"] == p["truth"] for p in plants) / len(plants), DIGITS) if plants else None
+    total["interval"] = None if interval is None else dict(interval)
+    if misses:
+        total["unseen"] = sum(p["unseen"] for p in plants)
+        total["too_small"] = sum(p["too_small"] for p in plants)
+        total["seen_error_pct"] = _error_pct(total["estimate"], total["truth"] - total["unseen"] - total["too_small"])
+    return total
+
+
 def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detections, settings: dict,
               seen: dict[int, Seen] | None = None, uncertain: Uncertainty | None = None) -> Counts:
     """The `counts.json` document from the per-row clusterings of both classes; with `uncertain`, the ripe counts'
-    estimates (clusters and the credit of lone detections) and intervals (`renderloop.counting.uncertainty`), which
-    must have been made from the same ripe rows."""
+    estimates (clusters and the credit of lone detections), intervals and each row's distribution
+    (`renderloop.counting.uncertainty`), which must have been made from the same ripe rows. It scores against every row
+    of `scene` and tallies every detection of `detections`: a scan of some rows passes the scene and the detections of
+    those rows (`count_scan`)."""
     truth, misses = truth_counts(scene), _scan_misses(scene, seen)
     intervals = _plant_uncertainty(scene, uncertain)
     centers = {plant.id: {label: [] for label in CLASSES} for plant in scene.plants}
@@ -90,21 +116,15 @@ def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detec
         mine = [plant for plant in plants if plant["row"] == row.id]
         rows.append({
             "id": row.id,
-            **{key: sum(plant[key] for plant in mine) for key in ("estimate", "truth", "unripe_estimate", "unripe_truth")},
+            **{key: sum(plant[key] for plant in mine) for key in SUMMED},
             "detections": by_row["ripe"][row.id].clusters.n_init,
             "unripe_detections": by_row["unripe"][row.id].clusters.n_init,
             "removed": len(by_row["ripe"][row.id].removed),
             "unripe_removed": len(by_row["unripe"][row.id].removed),
             "interval": None if uncertain is None else _interval(uncertain.rows[row.id]),
+            "distribution": None if uncertain is None else stored_distribution(uncertain.rows[row.id].pmf),
         })
-    total = {key: sum(plant[key] for plant in plants) for key in ("estimate", "truth", "unripe_estimate", "unripe_truth")}
-    total["error_pct"] = _error_pct(total["estimate"], total["truth"])
-    total["exact_plants"] = round(sum(p["estimate"] == p["truth"] for p in plants) / len(plants), DIGITS) if plants else None
-    total["interval"] = None if uncertain is None else _interval(uncertain.total)
-    if seen is not None:
-        total["unseen"] = sum(p["unseen"] for p in plants)
-        total["too_small"] = sum(p["too_small"] for p in plants)
-        total["seen_error_pct"] = _error_pct(total["estimate"], total["truth"] - total["unseen"] - total["too_small"])
+    total = total_of(plants, None if uncertain is None else _interval(uncertain.total), seen is not None)
     every = [d for frame in detections.frames for d in frame.detections]
     placed = {label: sum(1 for d in every if d.label == label and d.position is not None) for label in CLASSES}
     return Counts.model_validate({
@@ -117,6 +137,24 @@ def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detec
                        "unripe_removed": sum(row["unripe_removed"] for row in rows)},
         "settings": settings,
     }, strict=False)
+
+
+def scanned_rows(config: Config) -> list[int] | None:
+    """The rows a run's scan visited and its count is of (`planner.row`); None: every row."""
+    return None if config.planner.row is None else [config.planner.row]
+
+
+def scanned_detections(scene: Scene, detections: Detections, rows: Collection[int], counting: CountingConfig) -> Detections:
+    """`detections` less those whose points `count_rows` would count in a row of `scene` not in `rows` (a neighbouring
+    row's fruit seen past the scanned one): counted against `scene.of_rows(rows)` they are what counting the whole
+    scene gives those rows. Every frame stays, and so do the detections without a position (the scan's, not a row's)."""
+    rows = {int(row) for row in rows}
+    placed = [d.position for frame in detections.frames for d in frame.detections if d.position is not None]
+    counted, nearest = rows_of_points(scene, np.array(placed, dtype=float), counting.use_layout, counting.volume_margin)
+    kept = iter(np.isin(np.where(counted == NO_PLANT, nearest, counted), list(rows)))  # a false positive: its table's
+    frames = [frame.model_copy(update={"detections": [d for d in frame.detections if d.position is None or next(kept)]})
+              for frame in detections.frames]
+    return detections.model_copy(update={"frames": frames})
 
 
 def settings_of(counting: CountingConfig, seed: int) -> dict:
@@ -135,23 +173,28 @@ def run_counting(config: Config) -> CountingConfig:
 
 @dataclass(frozen=True)
 class ScanCount:
-    """A scan counted: each class's count per row (in the scene's row order), the counts document and the harvest plan."""
+    """A scan counted: each class's count per row (in the order of `scene`'s rows), the counts document, the harvest
+    plan and the scene they are of (the scanned rows', `Scene.of_rows`)."""
 
     rows: dict[str, list[RowCount]]
     counts: Counts
     harvest: Harvest
+    scene: Scene
 
 
 def count_scan(scene: Scene, detections: Detections, poses: np.ndarray, counting: CountingConfig, seed: int,
-               seen: dict[int, Seen] | None) -> ScanCount:
+               seen: dict[int, Seen] | None, rows: Collection[int] | None = None) -> ScanCount:
     """Count the fruit of `detections` per row, plant and class, with each plant's interval and the harvest plan; `poses`
-    are the scan's camera poses (T_world_optical), one per frame, and `seen` how the scan saw each fruit (None: not
-    known)."""
+    are the scan's camera poses (T_world_optical), one per frame, `seen` how the scan saw each fruit (None: not
+    known) and `rows` the rows it scanned (None: every row), which alone it counts, scores and plans the harvest of
+    (`scanned_detections`); a row the scene lacks is refused in one line."""
+    if rows is not None and (scanned := scene.of_rows(rows)) is not scene:
+        detections, scene = scanned_detections(scene, detections, rows, counting), scanned
     points = class_points(detections.frames)
-    rows = {label: count_rows(scene, points[label], label, counting, seed) for label in CLASSES}
+    counted = {label: count_rows(scene, points[label], label, counting, seed) for label in CLASSES}
     cameras = {index: pose[:3, 3] for index, pose in enumerate(poses)}
-    uncertain = uncertainty(scene, detections.frames, cameras, counting, seed, estimate=rows[LABEL])
-    document = summarise(scene, rows, detections, settings_of(counting, seed), seen, uncertain)
+    uncertain = uncertainty(scene, detections.frames, cameras, counting, seed, estimate=counted[LABEL])
+    document = summarise(scene, counted, detections, settings_of(counting, seed), seen, uncertain)
     estimates = {plant.id: plant.estimate for plant in document.plants}
     harvest = Harvest.model_validate(plan_harvest(scene, estimates, counting.harvest_min_ripe), strict=False)
-    return ScanCount(rows, document, harvest)
+    return ScanCount(counted, document, harvest, scene)

@@ -31,7 +31,9 @@ its draws' distributions, each computed exactly (the Poisson-binomial convolved 
 cut where less than 1e-12 of the Poisson is left), so it is deterministic. The interval at `level`
 is its central one: the narrowest [low, high] that leaves out at most (1 - level) / 2 of the
 probability on each side. A row's distribution is its plants' convolved (plants independent), the
-total the rows' convolved: the bounds are the quantiles of the sum, not sums of bounds.
+total the rows' convolved: the bounds are the quantiles of the sum, not sums of bounds. counts.json
+keeps each row's (`stored_distribution`), so rows counted by different missions add up the same way
+(`renderloop.counting.merge`).
 
 The interval is of the true count and need not hold the estimate: a plant likely to hide fruit has
 its interval above the estimate. Nor is a sum's interval bounded by its plants' widths: many plants
@@ -60,6 +62,12 @@ LABEL = "ripe"  # the interval is of the ripe count: ripe fruit are what the har
 POISSON_TAIL = 1e-12  # Poisson probability left out past the last count kept
 LONE_AWAY = 2.0  # a detection in no cluster is a fruit seen once when it is this many eps (a fruit's width) from every counted one
 QUANTILE_SLACK = 1e-9  # cumulative probabilities this close to a tail's share count as equal to it (rounding, not evidence)
+# counts.json keeps a row's distribution to where less than this is left beyond, each probability to this many
+# significant digits: the cumulative probabilities of a sum of stored distributions are then within 1e-10 of the exact
+# sum's, far inside QUANTILE_SLACK, so a merge of rows (`renderloop.counting.merge`) finds the interval that counting
+# them together does
+DISTRIBUTION_TAIL = 1e-12
+DISTRIBUTION_DIGITS = 10
 
 
 @dataclass(frozen=True)
@@ -261,11 +269,21 @@ def _count_uncertainty(estimate: int, pmf: np.ndarray, level: float) -> CountUnc
     return CountUncertainty(estimate, low, high, level, pmf)
 
 
-def _convolved(pmfs: Iterable[np.ndarray]) -> np.ndarray:
+def convolved(pmfs: Iterable[np.ndarray]) -> np.ndarray:
+    """The distribution of the sum of independent counts with these distributions."""
     total = np.ones(1)
     for pmf in pmfs:
-        total = np.convolve(total, pmf)
+        total = np.convolve(total, np.asarray(pmf, dtype=float))
     return total
+
+
+def stored_distribution(pmf: np.ndarray) -> list[float]:
+    """A count's distribution as counts.json keeps it: cut after the last count whose tail beyond holds DISTRIBUTION_TAIL
+    or more, and rounded to DISTRIBUTION_DIGITS significant digits, so the same count gives the same bytes."""
+    pmf = np.asarray(pmf, dtype=float)
+    beyond = np.cumsum(pmf[::-1])[::-1] - pmf  # beyond[k]: the probability of counts above k
+    kept = int(np.argmax(beyond < DISTRIBUTION_TAIL)) + 1 if len(pmf) else 0
+    return [float(f"{value:.{DISTRIBUTION_DIGITS}g}") for value in pmf[:kept]]
 
 
 def from_evidence(scene: Scene, plants: Mapping[int, PlantEvidence], interval: IntervalConfig,
@@ -287,8 +305,8 @@ def from_evidence(scene: Scene, plants: Mapping[int, PlantEvidence], interval: I
     rows = {}
     for row in scene.rows:
         mine = [found[plant_id] for plant_id in row.plants]
-        rows[row.id] = _count_uncertainty(sum(p.estimate for p in mine), _convolved(p.pmf for p in mine), level)
-    total = _count_uncertainty(sum(r.estimate for r in rows.values()), _convolved(r.pmf for r in rows.values()), level)
+        rows[row.id] = _count_uncertainty(sum(p.estimate for p in mine), convolved(p.pmf for p in mine), level)
+    total = _count_uncertainty(sum(r.estimate for r in rows.values()), convolved(r.pmf for r in rows.values()), level)
     return Uncertainty(found, rows, total)
 
 

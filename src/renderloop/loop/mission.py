@@ -23,7 +23,7 @@ import numpy as np
 from renderloop.config import Config, CountingConfig
 from renderloop.counting.harvest import plan_harvest
 from renderloop.counting.online import OnlineCounter
-from renderloop.counting.summary import run_counting
+from renderloop.counting.summary import run_counting, scanned_rows
 from renderloop.counting.uncertainty import PlantUncertainty, Uncertainty
 from renderloop.errors import UserError
 from renderloop.loop.nbv import (
@@ -84,9 +84,11 @@ class AdaptiveMission:
         self.static = read_waypoints(sim.run_dir)
         self.passes = {index: waypoint.time for index, waypoint in enumerate(self.static)}  # static index -> passed at
         self.router = TransitPlanner(self.scene, footprint_radius(config))
+        rows = scanned_rows(config)  # the plants of the rows the scan visits: those it decides on and counts
+        self.plants = [plant for plant in self.scene.plants if rows is None or plant.row in rows]
         self.maps = {plant.id: VoxelMap(canopy_box(plant)[0] - MAP_MARGIN, canopy_box(plant)[1] + MAP_MARGIN,
-                                        self.settings.voxel) for plant in self.scene.plants}
-        self.logs = {plant.id: _PlantLog(plant, self.settings.budget_s) for plant in self.scene.plants}
+                                        self.settings.voxel) for plant in self.plants}
+        self.logs = {plant.id: _PlantLog(plant, self.settings.budget_s) for plant in self.plants}
         self._candidate_views: dict[int, list[Candidate]] = {}
         self.view_frames: list[tuple[float, dict]] = []  # (trigger time, view record) to match frames to at the end
         self.ripe: dict[int, int] = {}  # plant id -> its latest ripe estimate, for the plants decided so far
@@ -103,7 +105,7 @@ class AdaptiveMission:
     def take(self, frame: Frame) -> None:
         """A perceived frame's depth into the voxel maps of the plants it can show."""
         camera = frame.pose[:3, 3]
-        for plant in self.scene.plants:
+        for plant in self.plants:
             lower, upper = canopy_box(plant)
             if np.linalg.norm((lower + upper) / 2 - camera) <= MAP_RANGE:
                 self.maps[plant.id].integrate(frame.depth, frame.pose, self.intrinsics)
@@ -260,13 +262,13 @@ class AdaptiveMission:
     def record(self, timestamps: list[float], flight_time: float) -> Mission:
         """`mission.json` once the flight is over and every frame is in; the final estimates are the run's count's
         (`run_counting`: an adaptive run's own interval and lone credit)."""
-        uncertainty = self._uncertainty(list(self.scene.plants), run_counting(self.config))
-        final = {plant.id: _estimate(uncertainty.plants[plant.id]) for plant in self.scene.plants}
+        uncertainty = self._uncertainty(self.plants, run_counting(self.config))
+        final = {plant.id: _estimate(uncertainty.plants[plant.id]) for plant in self.plants}
         for trigger, view in self.view_frames:
             taken = [i for i, stamp in enumerate(timestamps) if stamp >= trigger - 1e-9]
             view["frame"] = taken[0] if taken else None
         plants = []
-        for plant in self.scene.plants:
+        for plant in self.plants:
             log = self.logs[plant.id]
             rounds = [MissionRound(decided_at=r["decided_at"], why=r["why"], before=r["before"],
                                    after=r["after"] or final[plant.id],

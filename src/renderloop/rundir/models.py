@@ -137,6 +137,8 @@ class RowCount(FileModel):
     removed: Count  # false positives dropped
     unripe_removed: Count
     interval: CountInterval | None = None  # where the row's true ripe count lies: its plants' distributions convolved
+    # cut where less than 1e-12 is left (counting.uncertainty.stored_distribution); merged rows add up by it
+    distribution: list[Unit] | None = None  # P(the row's true ripe count = k), k = 0, 1, ...; null: without the intervals
 
 
 class TotalCount(FileModel):
@@ -271,3 +273,34 @@ class Mission(FileModel):
     flight_time_s: Time  # s, the whole mission (the hover at its end not included)
     plants: list[MissionPlant]
     harvest: list[HarvestUpdate] = []  # the plan after each decision, as the counts settled
+
+
+class Flight(FileModel):
+    """One UAV's mission of one row, in simulated seconds from the compartment's start."""
+
+    uav: Count  # index of the UAV, from 0
+    row: RowId
+    start_s: Time  # simulation s
+    end_s: Time
+
+
+class Schedule(FileModel):
+    """`fleet.json`: which UAV flies which row's mission when (`renderloop.fleet.schedule`), and when the last ends."""
+
+    uavs: Count  # UAVs shared the missions (some may fly none)
+    flights: list[Flight]  # in the order the missions were given
+    makespan_s: Time
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Schedule:
+        for number, flight in enumerate(self.flights):
+            if flight.end_s < flight.start_s:
+                raise ValueError(f"flights.{number}: ends at {flight.end_s} s, before it starts at {flight.start_s} s")
+            if flight.uav >= self.uavs:
+                raise ValueError(f"flights.{number}: uav {flight.uav} of {self.uavs} UAVs")
+        rows = [flight.row for flight in self.flights]
+        if len(set(rows)) != len(rows):
+            raise ValueError("two flights of one row")
+        if self.makespan_s != max((flight.end_s for flight in self.flights), default=0.0):
+            raise ValueError(f"makespan_s {self.makespan_s} is not when the last flight ends")
+        return self

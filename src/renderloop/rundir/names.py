@@ -41,6 +41,9 @@ COUNTS = "counts.json"
 HARVEST = "harvest.json"
 COUNT_PLOTS = "counts"
 
+ROW_RUNS = "rows"  # a scan split by rows (mission.split: rows): each row's mission a run of its own in rows/row_<id>
+FLEET = "fleet.json"  # which UAV flies which row's mission when
+
 TIMINGS = "timings.json"
 REPORT = "report.html"
 
@@ -57,6 +60,11 @@ def frame_file(stream: str, index: int) -> str:
 def frames_index(stream: str) -> str:
     """The TUM RGB-D list of a stream's images: rgb.txt, depth.txt, depth_sensor.txt."""
     return f"{stream}.txt"
+
+
+def row_run(row_id: int) -> str:
+    """A row's mission's run directory inside the compartment's, e.g. rows/row_1."""
+    return f"{ROW_RUNS}/row_{row_id}"
 
 
 def row_plot(row_id: int) -> str:

@@ -17,6 +17,7 @@ colours and shares in 0-1, angles within a turn either way, and every id a scene
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -427,7 +428,34 @@ class Scene(Frozen):
         return self
 
     def plant(self, plant_id: int) -> Plant:
-        return self.plants[plant_id]
+        plants = self.plants
+        if 0 <= plant_id < len(plants) and plants[plant_id].id == plant_id:
+            return plants[plant_id]
+        # a scene cut to some rows (`of_rows`) keeps its plants' ids, which are then no places in its list
+        key, by_id = self.__dict__.get("_by_id", (None, None))
+        if key != id(plants):
+            by_id = {plant.id: plant for plant in plants}
+            self.__dict__["_by_id"] = (id(plants), by_id)
+        return by_id[plant_id]
+
+    def of_rows(self, row_ids: Iterable[int]) -> Scene:
+        """The scene as a scan of some of its rows is counted against: those rows (in the scene's order), their plants
+        and the plants' fruit; the room, workstation, prototypes and environment as they are. The plants keep their ids,
+        so look one up with `plant(id)`, not by its place in `plants`. Every row asked for: the scene itself. A row the
+        scene lacks is refused in one line."""
+        wanted, known = {int(row_id) for row_id in row_ids}, [row.id for row in self.rows]
+        missing = sorted(wanted - set(known))
+        if missing:
+            raise UserError(f"the scene has no row {missing[0]} (its rows: {', '.join(map(str, known)) or 'none'})")
+        if wanted == set(known):
+            return self
+        plants = [plant for plant in self.plants if plant.row in wanted]
+        ids = {plant.id for plant in plants}
+        cut = self.model_copy(update={"rows": [row for row in self.rows if row.id in wanted], "plants": plants,
+                                      "peppers": [pepper for pepper in self.peppers if pepper.plant in ids]})
+        for index in ("_by_plant", "_by_id"):  # built for the whole scene's lists
+            cut.__dict__.pop(index, None)
+        return cut
 
     def peppers_of(self, plant_id: int) -> list[Pepper]:
         # An index built on first use (a scene of a thousand plants is asked for each), kept beside the fields of

@@ -1,0 +1,1 @@
+"""Several UAVs sharing a compartment's scan: one mission a row."""
