@@ -1,7 +1,7 @@
 """A compartment's scan split by rows (`mission.split: rows`): one mission a line, each a run of its own and a task of
 the executor, the rows' counts merged and shared out among the UAVs without two in one path at once.
 
-The compartment is the `commercial` preset cut to three plants a line and tiny raster frames, so that its four
+The compartment is the `commercial` preset cut to one plant a line and tiny raster frames, so that its four
 missions run in seconds; its lines, paths and the planner's rules are the preset's."""
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from renderloop.scene.model import read_scene
 
 from conftest import cli
 
-SMALL = {"greenhouse": {"size": [6.1, 5.0, 3.0], "table_size": [0.3, 0.8, 0.1], "plants_per_table": 2,
+SMALL = {"greenhouse": {"size": [6.1, 5.0, 3.0], "table_size": [0.3, 0.4, 0.1], "plants_per_table": 1,
                         "workstation_center": [0.0, -2.1], "environment": {"kind": "plain"}},
          "plants": {"prototypes": 2, "peppers": {"per_side": [1, 2]}},
          "planner": {"bands": 1, "points_per_ellipse": 4},
