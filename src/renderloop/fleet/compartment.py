@@ -28,6 +28,7 @@ from rich.console import Console
 from renderloop.config import Config
 from renderloop.counting.harvest import plan_harvest
 from renderloop.counting.merge import merge_counts
+from renderloop.counting.summary import scanned_rows
 from renderloop.fleet.schedule import Mission, corridor, schedule
 from renderloop.io.atomic import atomic_path
 from renderloop.parallel import LOCAL, Executor, map_tasks
@@ -52,11 +53,6 @@ def row_dir_of(out: Path, row: int) -> Path:
 def row_config(config: Config, row: int) -> Config:
     """The config of one row's mission: the compartment's, scanning that row only, as one UAV's single mission."""
     return config.override({"planner": {"row": row}, "mission": {"split": "none", "uavs": 1}})
-
-
-def scanned_rows(out: Path, config: Config) -> list[int]:
-    """The rows the split scan visits: `planner.row` (the config holds it to the greenhouse's rows), or every row."""
-    return [row.id for row in read_scene(out).rows if config.planner.row in (None, row.id)]
 
 
 def _share_scene(out: Path, row_dir: Path, config: Config, force: bool) -> None:
@@ -102,7 +98,7 @@ def run_compartment(out: Path, config: Config, force: bool = False, executor: Ex
     check_inputs(config)  # every row shares the detector: refused once, before any row's run
     executor.check_answers()  # and the cluster they run on, before the compartment's scene is built
     scene_stage.STAGE.run(out, config, force)
-    rows = scanned_rows(out, config)
+    rows = scanned_rows(config) or [row.id for row in read_scene(out).rows]  # planner.row, or every row
     shared = executor.share_cores(config)
     for row in rows:  # a row directory that is not ours, or made with another config, is refused before any work
         claim(row_dir_of(out, row), write=False)
