@@ -3,6 +3,7 @@ while every copy's fruit stay its own and exact, and the presets grow as they di
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
@@ -208,14 +209,45 @@ def test_cycles_draws_two_copies_of_one_prototype_from_one_set_of_meshes():
         assert len(empties) == 2 and len({obj.instance_collection.name for obj in empties}) == 1
         collection = empties[0].instance_collection
         assert collection.name not in [c.name for c in bpy.context.scene.collection.children]
+        # the prototype's leaves are one mesh, each vertex carrying its leaf's colour: a copy is a few objects to sync
         leaves = [obj for obj in collection.objects if obj.name.startswith("leaf_copies")]
-        assert len(leaves) == len(scene.prototypes[0].plant.leaves)
-        assert len({obj.data.name for obj in leaves}) <= 10  # the leaf templates, shared
+        assert len(leaves) == 1
+        colours = np.array([c.color[:3] for c in leaves[0].data.attributes["leaf_rgb"].data])
+        assert len(np.unique(colours.round(5), axis=0)) == len({tuple(leaf.rgb) for leaf in scene.prototypes[0].plant.leaves})
         fruit = [obj for obj in bpy.data.objects if obj.pass_index > 0]
         assert sorted(obj.pass_index for obj in fruit) == [p.id for p in scene.peppers]
         assert len({obj.data.name for obj in fruit}) == len({p.site for p in scene.peppers})  # a site's mesh, shared
         frame = renderer.render(pose)
     assert pepper.id in frame.mask
+
+
+def test_a_prototypes_leaves_look_in_cycles_as_the_same_leaves_drawn_one_object_each():
+    # the leaves of a prototype instanced by its copies read colour and dust from their vertices; drawn one object a
+    # leaf outside the prototype they read them from their objects: the two frames agree to sampling noise
+    from renderloop.render.camera import Intrinsics
+    from renderloop.render.cycles import CyclesRenderer
+    from renderloop.robot.kinematics import look_at
+    from renderloop.scene.objects import SceneObject
+
+    config, scene = copied_scene(2, 1)
+    config = config.override({"camera": {"width": 48, "height": 64}, "renderer": {"samples": 4, "denoise": False}})
+    group = next(item for item in greenhouse_objects(scene, groups=True) if isinstance(item, Group))
+    moved = group.transforms[0]
+    leaves = next(obj for obj in group.objects if obj.instances is not None)
+    placed = SceneObject(leaves.name, material=leaves.material, smooth=True, instances=dataclasses.replace(
+        leaves.instances, transforms=moved @ leaves.instances.transforms))
+    centre = placed.triangles().vertices.mean(axis=0)
+    pose = look_at(centre + [0.4, 0.0, 0.05], centre)
+    intrinsics = Intrinsics.from_config(config.camera)
+    frames = []
+    for objects in ([Group(group.name, (leaves,), group.transforms[:1])], [placed]):
+        with CyclesRenderer.from_objects(objects, config, intrinsics, seed=scene.seed) as renderer:
+            frames.append(renderer.render(pose))
+    grouped, own = frames
+    seen = own.depth > 0  # the leaves, not the sky behind them
+    assert seen.mean() > 0.1 and np.array_equal(seen, grouped.depth > 0)
+    colours = [frame.rgb[seen].astype(float).mean(axis=0) for frame in frames]
+    assert np.abs(colours[0] - colours[1]).max() < 4.0  # a copy's own colour and dust, not its instancer's white
 
 
 def test_a_compartment_the_machine_cannot_hold_is_refused_in_one_line_before_anything_is_written(

@@ -2,7 +2,7 @@
 
 The scene is built once (the object list of `scene/objects.py` as meshes from numpy
 arrays, copies of a template as linked duplicates of its one mesh, a plant prototype's objects
-as one collection that each of its copies instances, procedural materials
+as one collection that each of its copies instances (its leaves one mesh), procedural materials
 from the table in `scene/materials.py`, randomised greenhouse light) and `render()` only
 moves the camera, so with persistent data Cycles keeps its BVH between frames and the
 per-frame cost is path tracing plus a short sync.
@@ -237,13 +237,18 @@ class CyclesRenderer:
         self._add_items(objects, materials, templates, self._scene.collection.objects.link)
 
     def _add_items(self, objects: Iterable[SceneObject | Group], materials: dict[str, bpy.types.Material],
-                   templates: dict[tuple[int, str], bpy.types.Mesh], link) -> None:
+                   templates: dict[tuple[int, str], bpy.types.Mesh], link, merge: bool = False) -> None:
+        """`merge`: copies of templates that share an instance id and whose material has a per-vertex variant become one
+        mesh (`_add_merged_copies`), as inside a group."""
         for item in objects:  # the one place an object of the list becomes a Blender object
             if isinstance(item, Group):
                 self._add_group(item, materials, templates)
                 continue
             if item.instances is not None:
-                self._add_copies(item, materials, templates, link)
+                if merge and item.instances.pass_index is None and looks.per_vertex_name(item.material) in materials:
+                    self._add_merged_copies(item, materials, link)
+                else:
+                    self._add_copies(item, materials, templates, link)
                 continue
             mesh = item.triangles()
             if len(mesh.faces) == 0:
@@ -266,11 +271,12 @@ class CyclesRenderer:
                    templates: dict[tuple[int, str], bpy.types.Mesh]) -> None:
         """A plant prototype's objects once, in a collection the scene does not hold, and an empty instancing that
         collection at each copy's pose: Cycles keeps one copy of the prototype's meshes and objects, however many
-        plants stand in the rows. (A prototype's leaves merged into one mesh that carries each leaf's colour per vertex
-        took more memory in Cycles than its hundreds of leaf objects on the shared leaf templates: 1.44 against
-        1.26 GB for 200 copies of 8 prototypes.)"""
+        plants stand in the rows. The prototype's leaves are one merged mesh (`_add_merged_copies`), not an object a
+        leaf: Cycles walks every object of every instanced collection at each frame's sync, which for a camera in a
+        compartment's row (130 plants of a few hundred leaves in reach) cost three times the frame of the one-row
+        greenhouse (`benchmarks/frame_scaling.py`)."""
         collection = bpy.data.collections.new(group.name)
-        self._add_items(group.objects, materials, templates, collection.objects.link)
+        self._add_items(group.objects, materials, templates, collection.objects.link, merge=True)
         link = self._scene.collection.objects.link
         for k, transform in enumerate(group.transforms):
             empty = bpy.data.objects.new(f"{group.name}_copy_{k}", None)
@@ -303,6 +309,28 @@ class CyclesRenderer:
             obj.pass_index = item.pass_index if copies.pass_index is None else int(copies.pass_index[k])
             obj.color = (*map(float, linear[k]), float(copies.alpha[k]))
             link(obj)
+
+    def _add_merged_copies(self, item: SceneObject, materials: dict[str, bpy.types.Material], link) -> None:
+        """The copies as one mesh (their templates' triangles where each copy lies) in the per-vertex variant of their
+        material, each vertex carrying its copy's linear colour and alpha, its place in its own template and where its
+        copy stands: what the object-wise copies read from their objects (render/materials.py: `_copy_values`)."""
+        copies = item.instances
+        counts = np.array([len(copies.templates[int(index)].vertices) for index in copies.template])
+        data = _bpy_mesh(item.name, copies.merged())
+        rgba = np.column_stack([to_linear(np.asarray(copies.rgb, dtype=float).reshape(-1, 3)), copies.alpha])
+        own = np.concatenate([copies.templates[int(index)].vertices for index in copies.template])
+        values = ((looks.LEAF_COLOR_ATTRIBUTE, "FLOAT_COLOR", "color", np.repeat(rgba, counts, axis=0)),
+                  (looks.COPY_OBJECT_ATTRIBUTE, "FLOAT_VECTOR", "vector", own),
+                  (looks.COPY_PLACE_ATTRIBUTE, "FLOAT_VECTOR", "vector",
+                   np.repeat(np.asarray(copies.transforms, dtype=float)[:, :3, 3], counts, axis=0)))
+        for name, kind, field, value in values:
+            data.attributes.new(name, kind, "POINT").data.foreach_set(field, value.astype(np.float32).ravel())
+        if item.smooth:
+            data.shade_smooth()
+        data.materials.append(materials[looks.per_vertex_name(item.material)])
+        obj = bpy.data.objects.new(item.name, data)
+        obj.pass_index = item.pass_index
+        link(obj)
 
     # -- rendering ----------------------------------------------------------------------------
 

@@ -15,7 +15,10 @@ mesh of a plant from a per-vertex attribute `leaf_rgb`, so a plant of 50 leaves
 is one object and one material, which keeps Cycles' scene sync short. The 'pepper'
 style's leaves are instances of a few template meshes, so each copy is an object
 and reads its colour and its dust from the object's `color` (RGB and alpha); its
-fruit read their ripe share from the alpha.
+fruit read their ripe share from the alpha. Inside a plant prototype, which each
+copy of the plant instances whole, the leaves are one merged mesh instead, and the
+leaf material's per-vertex variant (`per_vertex_name`) reads each leaf's colour, dust and
+place from attributes of its vertices.
 """
 
 from __future__ import annotations
@@ -34,7 +37,14 @@ from renderloop.scene.meshes import frame_from_axis
 from renderloop.scene.model import Environment
 from renderloop.scene.objects import film_tint
 
-LEAF_COLOR_ATTRIBUTE = "leaf_rgb"
+LEAF_COLOR_ATTRIBUTE = "leaf_rgb"  # a leaf's linear colour per vertex; its alpha, in merged copies, the copy's alpha
+COPY_OBJECT_ATTRIBUTE = "copy_object"  # in merged copies: a vertex where it lies in its copy's own template
+COPY_PLACE_ATTRIBUTE = "copy_place"  # in merged copies: where its copy stands in the merged mesh's frame
+
+
+def per_vertex_name(name: str) -> str:
+    """The name of the variant of material `name` that reads from its vertices what it reads from its object."""
+    return f"{name}@per_vertex"
 
 
 def srgb_to_linear(rgb: Sequence[float]) -> tuple[float, float, float]:
@@ -174,26 +184,41 @@ def _vector(t: _Tree, operation: str, a, b) -> bpy.types.NodeSocket:
     return node.outputs[0]
 
 
-def _per_copy(t: _Tree, info: bpy.types.ShaderNode) -> bpy.types.NodeSocket:
-    """Texture coordinates that differ from copy to copy of one mesh: its own object space, shifted by
-    where the copy stands, so two leaves of one template do not carry the same blotches."""
-    return _vector(t, "ADD", t.node("ShaderNodeTexCoord").outputs["Object"], _vector(t, "SCALE", info.outputs["Location"], 37.0))
+def _per_copy(t: _Tree, own: bpy.types.NodeSocket, place: bpy.types.NodeSocket) -> bpy.types.NodeSocket:
+    """Texture coordinates that differ from copy to copy of one mesh: its own object space `own`, shifted by
+    where the copy stands (`place`), so two leaves of one template do not carry the same blotches."""
+    return _vector(t, "ADD", own, _vector(t, "SCALE", place, 37.0))
+
+
+def _copy_values(t: _Tree, per_vertex: bool) -> tuple[bpy.types.NodeSocket, ...]:
+    """A copy's colour, alpha and texture coordinates (`_per_copy`): from its object, or, for copies merged into
+    one mesh, from its vertices' attributes, its place then theirs plus where the merged mesh stands (in an
+    instanced prototype, the plant's copy)."""
+    info = t.node("ShaderNodeObjectInfo")
+    if not per_vertex:
+        return info.outputs["Color"], info.outputs["Alpha"], _per_copy(
+            t, t.node("ShaderNodeTexCoord").outputs["Object"], info.outputs["Location"])
+    color = t.node("ShaderNodeAttribute", attribute_type="GEOMETRY", attribute_name=LEAF_COLOR_ATTRIBUTE)
+    own = t.node("ShaderNodeAttribute", attribute_type="GEOMETRY", attribute_name=COPY_OBJECT_ATTRIBUTE).outputs["Vector"]
+    place = t.node("ShaderNodeAttribute", attribute_type="GEOMETRY", attribute_name=COPY_PLACE_ATTRIBUTE).outputs["Vector"]
+    return color.outputs["Color"], color.outputs["Alpha"], _per_copy(t, own, _vector(t, "ADD", place, info.outputs["Location"]))
 
 
 def _noise_at(t: _Tree, coords, scale: float, detail: float = 2.0) -> bpy.types.NodeSocket:
     return t.node("ShaderNodeTexNoise", {"Vector": coords, "Scale": scale, "Detail": detail}).outputs["Fac"]
 
 
-def pepper_leaf_material(name: str = "pepper_leaf") -> bpy.types.Material:
+def pepper_leaf_material(name: str = "pepper_leaf", per_vertex: bool = False) -> bpy.types.Material:
     """A sweet-pepper leaf, one material for every copy of every template. The copy's colour and dust come
-    from its object (Object Info Color and Alpha). From the template's uv (u along the midrib, v across, 0.5
+    from its object (Object Info Color and Alpha), or with `per_vertex` from its vertices (`_copy_values`).
+    From the template's uv (u along the midrib, v across, 0.5
     on it): the midrib, seven pairs of lateral veins curving toward the tip and a fine network between them,
     paler than the blade and sunk into it (bump). Blotches and a yellower cast that differ from copy to copy,
     a paler underside, a grey film where dusty, a waxy coat and grey sheen, and a Translucent share so
     back-lit leaves glow."""
     look = MATERIALS[name]
-    material, t = _new_material(name)
-    info = t.node("ShaderNodeObjectInfo")
+    material, t = _new_material(per_vertex_name(name) if per_vertex else name)
+    own_color, own_alpha, coords = _copy_values(t, per_vertex)
     texcoord = t.node("ShaderNodeTexCoord")
     uv = t.node("ShaderNodeSeparateXYZ", {0: texcoord.outputs["UV"]})
     u, across = uv.outputs[0], t.math("ABSOLUTE", t.math("SUBTRACT", uv.outputs[1], 0.5))
@@ -208,17 +233,16 @@ def pepper_leaf_material(name: str = "pepper_leaf") -> bpy.types.Material:
     network = t.map_range(cells.outputs["Distance"], 0.0, 0.05, look.reticulate, 0.0)
     veins = t.math("MAXIMUM", t.math("MAXIMUM", midrib, lateral), network)
 
-    coords = _per_copy(t, info)
     blotch = _noise_at(t, coords, look.variation_scale, 3.0)
     gain = t.map_range(blotch, 0.3, 0.7, 1.0 - look.variation, 1.0 + look.variation)
-    base = t.mix_rgb(1.0, info.outputs["Color"], t.node("ShaderNodeCombineXYZ", {0: gain, 1: gain, 2: gain}).outputs[0], "MULTIPLY")
+    base = t.mix_rgb(1.0, own_color, t.node("ShaderNodeCombineXYZ", {0: gain, 1: gain, 2: gain}).outputs[0], "MULTIPLY")
     yellower = t.mix_rgb(1.0, base, (1.25, 1.2, 0.6), "MULTIPLY")
     base = t.mix_rgb(t.map_range(blotch, 0.5, 0.8, 0.0, 0.3), base, yellower)
     color = t.mix_rgb(t.math("MULTIPLY", veins, 0.8), base, t.mix_rgb(1.0, base, look.vein_gain, "MULTIPLY"))
     underside = t.node("ShaderNodeNewGeometry").outputs["Backfacing"]
     color = t.mix_rgb(underside, color, t.mix_rgb(1.0, color, look.underside_gain, "MULTIPLY"))
     patchy = t.map_range(_noise_at(t, coords, 2.5 * look.variation_scale), 0.35, 0.65, 0.3 * look.dust, look.dust)
-    dust = t.math("MULTIPLY", info.outputs["Alpha"], patchy)
+    dust = t.math("MULTIPLY", own_alpha, patchy)
     color = t.mix_rgb(dust, color, srgb_to_linear(look.accent_rgb))
     roughness = t.math("ADD", look.roughness, t.math("MULTIPLY", dust, 0.4))
     height = t.math("SUBTRACT", t.math("MULTIPLY", _noise_at(t, coords, 6.0 * look.variation_scale), 0.3), veins)
@@ -344,9 +368,16 @@ RECIPES = {"plain": plain_material, "leaf": leaf_material, "flower": flower_mate
            "pattern": pattern_material}
 
 
+PER_VERTEX_RECIPES = {"pepper_leaf": lambda name: pepper_leaf_material(name, per_vertex=True)}
+
+
 def greenhouse_materials() -> dict[str, bpy.types.Material]:
-    """Every material of the table that Cycles draws, by name, built from its recipe."""
-    return {name: RECIPES[look.recipe](name) for name, look in MATERIALS.items() if look.recipe is not None}
+    """Every material of the table that Cycles draws, by name, built from its recipe, and the per-vertex variants
+    (`per_vertex_name`) of the recipes that have one."""
+    materials = {name: RECIPES[look.recipe](name) for name, look in MATERIALS.items() if look.recipe is not None}
+    materials.update({per_vertex_name(name): PER_VERTEX_RECIPES[look.recipe](name)
+                      for name, look in MATERIALS.items() if look.recipe in PER_VERTEX_RECIPES})
+    return materials
 
 
 def greenhouse_lighting(scene: bpy.types.Scene, rng: np.random.Generator, room: Sequence[float]) -> dict[str, float]:
