@@ -106,7 +106,7 @@ def test_culling_keeps_the_plants_near_the_camera_and_the_truth_whole(commercial
 
 def test_a_culled_raster_frame_equals_the_whole_scenes_frame_with_fewer_geoms(commercial, scan):
     from renderloop.render.camera import Intrinsics
-    from renderloop.render.raster import RasterRenderer
+    from renderloop.render.raster import HIDDEN, RasterRenderer
 
     config, scene = commercial
     config = config.override({"renderer": {"backend": "raster"}, "camera": {"width": 160, "height": 120}})
@@ -117,7 +117,14 @@ def test_a_culled_raster_frame_equals_the_whole_scenes_frame_with_fewer_geoms(co
     assert whole_geoms > 10_000  # past the fixed buffer mujoco.Renderer would have drawn
     with RasterRenderer(scene, config, intrinsics, pose[None, :3, 3]) as culled:
         frame, culled_geoms = culled.render(pose), culled.model.ngeom
+        drawn = np.count_nonzero(culled.model.geom_group != HIDDEN)
+        culled.sides = np.zeros((4, 3))  # every side of the frustum passes: each geom in reach is drawn
+        every = culled.render(pose)
+        assert np.count_nonzero(culled.model.geom_group != HIDDEN) > 2 * drawn
     assert culled_geoms < whole_geoms / 2
+    # a frame draws only the geoms inside its frustum, or whose shadow is, and is the frame of all those in reach
+    for name in ("rgb", "depth", "mask"):
+        assert np.array_equal(getattr(frame, name), getattr(every, name))
     assert np.array_equal(frame.mask, expected.mask) and len(np.unique(frame.mask)) > 3
     # MuJoCo stores a mesh about its centre in float32: the copies' merged fruit stalks and calyces, of fewer plants
     # in the culled build, have another centre, so their vertices differ in the last bit, and the pixels they decide

@@ -112,6 +112,15 @@ def render_world_xml(objects: list[SceneObject], config: Config, intrinsics: Int
     return ET.tostring(root, encoding="unicode")
 
 
+def _frustum_sides(intrinsics: Intrinsics) -> np.ndarray:
+    """The unit inward normals (4, 3), in the optical frame, of the planes through the camera's centre and the outer
+    edges of its frame's first and last pixel columns and rows: a point p is in view when p . n >= 0 for all four."""
+    left, right = (-0.5 - intrinsics.cx) / intrinsics.fx, (intrinsics.width - 0.5 - intrinsics.cx) / intrinsics.fx
+    top, bottom = (-0.5 - intrinsics.cy) / intrinsics.fy, (intrinsics.height - 0.5 - intrinsics.cy) / intrinsics.fy
+    sides = np.array([[1.0, 0.0, -left], [-1.0, 0.0, right], [0.0, 1.0, -top], [0.0, -1.0, bottom]])
+    return sides / np.linalg.norm(sides, axis=1, keepdims=True)
+
+
 class RasterRenderer:
     """One MuJoCo render world and OpenGL context; render() moves the camera and draws two passes: the colour, then
     the geom ids, whose depth buffer is the depth (MuJoCo's own depth render is that same id pass read for depth,
@@ -138,6 +147,7 @@ class RasterRenderer:
         self.reach, self.shade = reach, shade
         self.geom_centre, self.geom_radius = self.data.geom_xpos.copy(), model.geom_rbound.copy()
         self.geom_group = model.geom_group.copy()
+        self.sides = _frustum_sides(intrinsics)
         self.near, self.far = config.camera.clip
         self.width, self.height = intrinsics.width, intrinsics.height
         self.gl = mujoco.GLContext(model.vis.global_.offwidth, model.vis.global_.offheight)
@@ -179,7 +189,7 @@ class RasterRenderer:
         self.data.mocap_pos[0] = camera[:3, 3]
         mujoco.mju_mat2Quat(self.data.mocap_quat[0], camera[:3, :3].ravel())
         mujoco.mj_forward(self.model, self.data)
-        self._show_near(np.asarray(pose, dtype=float)[:3, 3])
+        self._show_near(np.asarray(pose, dtype=float))
         self.gl.make_current()
         scene, flags = self.scene, self.scene.flags
         mujoco.mjv_updateScene(self.model, self.data, self.option, self.perturb, self.camera, mujoco.mjtCatBit.mjCAT_ALL, scene)
@@ -209,17 +219,25 @@ class RasterRenderer:
         mask = self.pepper_of_geom[geom_of_segment[segment]]
         return RenderedFrame(rgb=rgb, depth=np.ascontiguousarray(depth), mask=mask, timings={"total": time.perf_counter() - start})
 
-    def _show_near(self, position: np.ndarray) -> None:
-        """Draw only the geoms within reach of the camera at `position`, or whose shadow is (software OpenGL pays for
-        every triangle it is given): the others are no pixel's and shade none, so the frame stays the same."""
-        centre, radius = self.geom_centre, self.geom_radius
+    def _show_near(self, pose: np.ndarray) -> None:
+        """Draw only the geoms in the view of the camera at `pose` (T_world_optical), or whose shadow is (software
+        OpenGL pays for every triangle it is given): within reach of it and inside the four sides of its frustum. The
+        others are no pixel's and shade none, so the frame stays the same. A geom is its bounding sphere, or with the
+        sun's shadows the capsule its sphere sweeps along the sun's light down to the floor."""
+        position, centre, radius = pose[:3, 3], self.geom_centre, self.geom_radius
         if self.shade is None:
             distance = np.linalg.norm(centre - position, axis=1)
+            ends = (centre,)
         else:  # to the path of the geom's centre along the sun down to the floor (a radius below it)
             length = np.maximum(centre[:, 2] + radius, 0.0) / -self.shade[2]
             along = np.clip((position - centre) @ self.shade / (self.shade @ self.shade), 0.0, length)
             distance = np.linalg.norm(centre + along[:, None] * self.shade - position, axis=1)
-        self.model.geom_group[:] = np.where(distance <= self.reach + radius, self.geom_group, HIDDEN)
+            ends = (centre, centre + length[:, None] * self.shade)
+        # each side's signed distance (inside positive) of the farthest-in end: a capsule is out when both ends are
+        # beyond one side by more than its radius
+        inside = np.max([(end - position) @ pose[:3, :3] @ self.sides.T for end in ends], axis=0)
+        shown = (distance <= self.reach + radius) & (inside >= -radius[:, None]).all(axis=1)
+        self.model.geom_group[:] = np.where(shown, self.geom_group, HIDDEN)
 
     def _coverage(self) -> np.ndarray:
         """The colour pass's alpha, bottom row first: geometry writes 1 and the clear colour is 0, so after the
