@@ -31,7 +31,9 @@ ROOT = Path(__file__).resolve().parent.parent
 CHILD = """
 import dataclasses, json, sys, time
 import numpy as np
-preset, culled, width, height, samples, frames = sys.argv[1], sys.argv[2] == "culled", *map(int, sys.argv[3:])
+preset, culled, width, height, samples, frames = sys.argv[1], sys.argv[2] == "culled", *map(int, sys.argv[3:7])
+config_file = sys.argv[7] if len(sys.argv) > 7 else None  # a file over the preset: it names the row itself
+from pathlib import Path
 from renderloop.config import load_config
 from renderloop.planning.waypoints import plan_waypoints
 from renderloop.render.camera import Intrinsics
@@ -41,8 +43,10 @@ from renderloop.scene.generate import generate_scene
 from renderloop.scene.visible import farthest_seen, visible_scene
 import bpy
 
-config = load_config(preset, seed=0).override({
-    "planner": {"row": 1 if preset == "commercial" else None},  # a mission of one line: line 1, from the middle path
+config = load_config(preset, Path(config_file) if config_file else None, seed=0)
+if config_file is None:  # a mission of one line: line 1 of the compartment, from the middle path
+    config = config.override({"planner": {"row": 1 if preset == "commercial" else None}})
+config = config.override({
     "camera": {"width": width, "height": height},
     "renderer": {"backend": "cycles", "samples": samples, "denoise": False, "device": "cpu"}})
 start = time.perf_counter()
@@ -79,10 +83,12 @@ print(json.dumps({"peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).
 CASES = (("greenhouse", "culled"), ("commercial", "culled"), ("commercial", "whole"))
 
 
-def run_case(preset: str, mode: str, args: argparse.Namespace) -> dict:
+def run_case(preset: str, mode: str, args: argparse.Namespace, config_file: Path | None = None) -> dict:
+    """One case in a fresh process: `args` gives width, height, samples and frames; `config_file` a YAML over the
+    preset (its `planner.row` the row scanned)."""
     child = subprocess.Popen([sys.executable, "-c", CHILD, preset, mode, str(args.width), str(args.height),
-                              str(args.samples), str(args.frames)], cwd=ROOT, stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True)
+                              str(args.samples), str(args.frames), *([str(config_file)] if config_file else [])],
+                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     out, err = child.communicate()
     if child.returncode != 0:
         raise SystemExit(f"{preset} ({mode}) failed:\n{err[-2000:]}")

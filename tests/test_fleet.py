@@ -15,6 +15,7 @@ import pytest
 import yaml
 
 from renderloop.config import load_config
+from renderloop.errors import UserError
 from renderloop.counting.summary import truth_counts
 from renderloop.fleet.compartment import row_dir_of, run_compartment
 from renderloop.io.ownership import LEDGER, read_ledger
@@ -126,6 +127,21 @@ def test_a_killed_compartment_resumes_its_unfinished_line_and_leaves_the_finishe
     run_compartment(out, small)
     assert {path: path.stat().st_mtime_ns for path in finished} == finished
     assert _contents(out) == _contents(compartment)
+
+
+def test_other_uavs_schedule_a_scanned_compartment_again_without_running_its_lines_again(compartment: Path, small,
+                                                                                          tmp_path: Path):
+    out = Path(shutil.copytree(compartment, tmp_path / "house"))
+    frames = {path: path.stat().st_mtime_ns for path in (out / names.ROW_RUNS).rglob("*.png")}
+    run_compartment(out, small.override({"mission": {"uavs": 1}}))
+    plan = Schedule.model_validate(json.loads((out / names.FLEET).read_text()))
+    assert {flight.uav for flight in plan.flights} == {0} and plan.makespan_s == pytest.approx(
+        sum(f.end_s - f.start_s for f in plan.flights), abs=0.01)  # one UAV flies every line, one after another
+    assert files.read_config(out).mission.uavs == 1
+    assert {path: path.stat().st_mtime_ns for path in frames} == frames
+    assert files.read_counts(out) == files.read_counts(compartment)
+    with pytest.raises(UserError, match=r"made with another config \(camera.rate_hz"):  # what the lines' files follow
+        run_compartment(out, small.override({"camera": {"rate_hz": 0.5}}))
 
 
 def test_one_line_of_the_compartment_is_scanned_counted_and_scored_alone(small, tmp_path: Path, monkeypatch, capsys):

@@ -46,6 +46,10 @@ SCENE_FILES = (names.SCENE, names.WORLD, names.TOP_VIEW)  # what a row's run sha
 Progress = Callable[[int, int], None]
 
 
+# what only fleet.json follows: a compartment scanned before is scheduled again for other UAVs, its rows kept
+SCHEDULE_ONLY = {"mission": {"uavs": 1}}
+
+
 def row_dir_of(out: Path, row: int) -> Path:
     return Path(out) / names.row_run(row)
 
@@ -94,7 +98,9 @@ def run_compartment(out: Path, config: Config, force: bool = False, executor: Ex
     out = Path(out)
     claim(out, write=False)
     if not force:
-        files.check_config(out, config)
+        files.check_config(out, config, remade=SCHEDULE_ONLY)
+        if (out / names.CONFIG).is_file():  # the UAVs asked for now: fleet.json, written below, follows them
+            files.write_config(out, config)
     check_inputs(config)  # every row shares the detector: refused once, before any row's run
     executor.check_answers()  # and the cluster they run on, before the compartment's scene is built
     scene_stage.STAGE.run(out, config, force)

@@ -272,9 +272,8 @@ class CyclesRenderer:
         """A plant prototype's objects once, in a collection the scene does not hold, and an empty instancing that
         collection at each copy's pose: Cycles keeps one copy of the prototype's meshes and objects, however many
         plants stand in the rows. The prototype's leaves are one merged mesh (`_add_merged_copies`), not an object a
-        leaf: Cycles walks every object of every instanced collection at each frame's sync, which for a camera in a
-        compartment's row (130 plants of a few hundred leaves in reach) cost three times the frame of the one-row
-        greenhouse (`benchmarks/frame_scaling.py`)."""
+        leaf: Cycles walks every object of every instanced collection at each frame's sync, and a compartment's
+        camera has about 130 plants of a few hundred leaves each in reach (`benchmarks/frame_scaling.py`)."""
         collection = bpy.data.collections.new(group.name)
         self._add_items(group.objects, materials, templates, collection.objects.link, merge=True)
         link = self._scene.collection.objects.link

@@ -242,11 +242,15 @@ def _what_it_computes(config: Config) -> Config:
     return config.override({"renderer": {"threads": 0, "device": "cpu"}, "mission": {"online": False}})
 
 
-def check_config(run_dir: Path, config: Config) -> None:
+def check_config(run_dir: Path, config: Config, remade: dict | None = None) -> None:
     """Refuse to add files of one config to a run directory made with another: mixing two seeds' files in one
-    directory would make every later figure a lie."""
+    directory would make every later figure a lie. `remade`: fields (an override, set on both sides before they are
+    compared) that decide only files the caller writes again at every call."""
     path = Path(run_dir) / names.CONFIG
-    if path.is_file() and (made := _what_it_computes(load_resolved(path))) != (given := _what_it_computes(config)):
+    made, given = _what_it_computes(load_resolved(path)) if path.is_file() else None, _what_it_computes(config)
+    if made is not None and remade:
+        made, given = made.override(remade), given.override(remade)
+    if made is not None and made != given:
         raise UserError(f"{path}: this run directory was made with another config ({describe_changes(made, given)}); "
                         "use --force to start it again, or another --out")
 
