@@ -8,7 +8,7 @@ run's), the compartment's total with its interval, and the
 makespan of the same missions shared by 1 to 4 UAVs (`renderloop.fleet.schedule`, no two in one path
 at once). A finished OUT is reused: each row's run is skipped, stage by stage.
 
-    .venv/bin/python benchmarks/compartment.py --out runs/commercial --workers 2
+    .venv/bin/python benchmarks/compartment.py --out runs/commercial --workers 1
     .venv/bin/python benchmarks/compartment.py --out runs/row1 --workers 1 --config benchmarks/configs/row1.yaml --name compartment_row1
 """
 

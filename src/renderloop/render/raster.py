@@ -189,7 +189,7 @@ class RasterRenderer:
         self.data.mocap_pos[0] = camera[:3, 3]
         mujoco.mju_mat2Quat(self.data.mocap_quat[0], camera[:3, :3].ravel())
         mujoco.mj_forward(self.model, self.data)
-        self._show_near(np.asarray(pose, dtype=float))
+        self._show_in_view(np.asarray(pose, dtype=float))
         self.gl.make_current()
         scene, flags = self.scene, self.scene.flags
         mujoco.mjv_updateScene(self.model, self.data, self.option, self.perturb, self.camera, mujoco.mjtCatBit.mjCAT_ALL, scene)
@@ -219,7 +219,7 @@ class RasterRenderer:
         mask = self.pepper_of_geom[geom_of_segment[segment]]
         return RenderedFrame(rgb=rgb, depth=np.ascontiguousarray(depth), mask=mask, timings={"total": time.perf_counter() - start})
 
-    def _show_near(self, pose: np.ndarray) -> None:
+    def _show_in_view(self, pose: np.ndarray) -> None:
         """Draw only the geoms in the view of the camera at `pose` (T_world_optical), or whose shadow is (software
         OpenGL pays for every triangle it is given): within reach of it and inside the four sides of its frustum. The
         others are no pixel's and shade none, so the frame stays the same. A geom is its bounding sphere, or with the
