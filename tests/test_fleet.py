@@ -15,8 +15,8 @@ import pytest
 import yaml
 
 from renderloop.config import load_config
-from renderloop.errors import UserError
 from renderloop.counting.summary import truth_counts
+from renderloop.errors import UserError
 from renderloop.fleet.compartment import row_dir_of, run_compartment
 from renderloop.io.ownership import LEDGER, read_ledger
 from renderloop.parallel import Executor
