@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime
+import io
 import json
 import os
 import platform
@@ -11,11 +12,12 @@ import statistics
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from renderloop.io.atomic import write_text
+from renderloop.io.atomic import write_bytes, write_text
 
 from renderloop.render.camera import Intrinsics
 from renderloop.robot.kinematics import look_at
@@ -114,4 +116,70 @@ def render_costs(scene, config, poses: list[np.ndarray]) -> dict:
     with raster:
         raster.render(poses[0])
         out["raster_frame_ms"] = summary([1000 * timed(raster.render, pose)[1] for pose in poses])
+    return out
+
+
+@dataclass(frozen=True)
+class Panel:
+    """One panel of `plot_against_plants`: its y label, its lines (a table column's heading, the legend's name, a
+    matplotlib style: "o-" drawn dark, others light) and an optional target drawn dotted (its value, in words)."""
+
+    label: str
+    lines: tuple[tuple[str, str, str], ...]
+    target: tuple[float, str] | None = None
+
+
+def plot_against_plants(results: Path, panels: tuple[Panel, ...], out: Path) -> Path:
+    """Draw a stored results file's table against its "plants" column (log x), a panel each, into a small PNG at
+    `out`. The picture is drawn only from the results file, so it always shows the figures the docs' table shows."""
+    script = f"benchmarks/{results.stem}.py"
+    try:
+        record = json.loads(results.read_text(encoding="utf-8"))
+        table = record["figures"]["table"]
+        column = {heading: [row[i] for row in table["rows"]] for i, heading in enumerate(table["columns"])}
+        plants = column["plants"]
+        series = {heading: column[heading] for panel in panels for heading, _, _ in panel.lines}
+    except OSError as error:
+        raise SystemExit(f"cannot read {results}: {error.strerror}; run {script} first")
+    except (ValueError, KeyError, TypeError, IndexError) as error:
+        reason = f"it lacks {error}" if isinstance(error, KeyError) else str(error)
+        raise SystemExit(f"{results} is not a {results.stem} results file: {reason}")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    figure, axes = plt.subplots(1, len(panels), figsize=(3 * len(panels), 2.8))
+    for axis, panel in zip(axes, panels):
+        for heading, name, style in panel.lines:
+            axis.plot(plants, series[heading], style, color="#1f3b73" if style == "o-" else "#6b8cc7", label=name,
+                      markersize=4)
+        top = max(max(series[heading]) for heading, _, _ in panel.lines)
+        if panel.target is not None:
+            target, said = panel.target
+            axis.axhline(target, color="#c0392b", linestyle=":", linewidth=1.2)
+            axis.annotate(f"target at {plants[-1]} plants: {said}", (0.03, target), xycoords=("axes fraction", "data"),
+                          textcoords="offset points", xytext=(0, -10), fontsize=7, color="#c0392b")
+            top = max(top, target)
+        axis.set_xscale("log")
+        axis.set_xticks(plants, [str(p) for p in plants])
+        axis.minorticks_off()
+        axis.set_ylim(0, top * 1.1)
+        axis.set_xlabel("plants", fontsize=8)
+        axis.set_ylabel(panel.label, fontsize=8)
+        axis.tick_params(labelsize=7)
+        axis.grid(alpha=0.3)
+        if len(panel.lines) > 1:
+            axis.legend(fontsize=7, loc="center left")
+    figure.suptitle(f"Measured {record.get('date', 'unknown')} on {record.get('machine', 'an unknown machine')}", fontsize=7)
+    figure.tight_layout()
+    drawn = io.BytesIO()
+    figure.savefig(drawn, format="png", dpi=110)
+    plt.close(figure)
+    # A few line colours on white: a 32-colour palette keeps the PNG small without visible loss.
+    small = io.BytesIO()
+    Image.open(drawn).convert("RGB").quantize(colors=32).save(small, format="PNG", optimize=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_bytes(out, small.getvalue())
     return out

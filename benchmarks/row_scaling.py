@@ -7,6 +7,9 @@ resident memory, and the seconds per scanned plant; and a Cycles frame of the ro
 1 sample, built for its view (`frame_scaling.py`'s case): its build, frame seconds and peak memory.
 
     .venv/bin/python benchmarks/row_scaling.py [--sizes 5,40,200,1000] [--no-save]
+    .venv/bin/python benchmarks/row_scaling.py --plot-only    # redraw the plot from the stored results
+
+After saving its results to benchmarks/results/row_scaling.json it draws them into docs/images/row_scaling.png.
 
 Target: the seconds per scanned plant and the Cycles frame flat from 40 plants on (a row longer than the camera's
 reach), whatever else the greenhouse holds.
@@ -25,11 +28,12 @@ import time
 from pathlib import Path
 
 import yaml
-from common import as_table, save_result
+from common import RESULTS, Panel, as_table, plot_against_plants, save_result
 from frame_scaling import run_case
 from scene_scaling import MOST_PER_ROW, overrides
 
 ROOT = Path(__file__).resolve().parents[1]
+PLOT = ROOT / "docs" / "images" / "row_scaling.png"
 SCAN = {"renderer": {"backend": "raster"}, "camera": {"rate_hz": 0.2}}  # compartment.yaml's cost a 2-core machine bears
 
 
@@ -77,11 +81,24 @@ COLUMNS = {"plants": "plants", "scanned": "plants scanned", "frames": "frames", 
            "cycles_frame_s": "Cycles frame, s", "cycles_rss_mb": "Cycles peak memory, MB"}
 
 
+PANELS = (
+    Panel("seconds a plant scanned", ((COLUMNS["per_plant_s"], "whole run", "o-"),)),
+    Panel("Cycles frame, s", ((COLUMNS["cycles_frame_s"], "Cycles frame", "o-"),)),
+    Panel("peak memory, MB", ((COLUMNS["run_rss_mb"], "the run (raster)", "o-"),
+                              (COLUMNS["cycles_rss_mb"], "a Cycles frame", "s--"))),
+)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="5,40,200,1000", help="plant counts, comma-separated")
     parser.add_argument("--no-save", action="store_true", help="print only; do not write benchmarks/results/")
+    parser.add_argument("--plot-only", action="store_true",
+                        help=f"measure nothing: redraw {PLOT.relative_to(ROOT)} from benchmarks/results/row_scaling.json")
     args = parser.parse_args()
+    if args.plot_only:
+        print(plot_against_plants(RESULTS / "row_scaling.json", PANELS, PLOT))
+        return
     frame_args = argparse.Namespace(width=320, height=240, samples=1, frames=3)
     table = []
     for plants in (int(size) for size in args.sizes.split(",")):
@@ -90,7 +107,9 @@ def main() -> None:
     figures = {"table": as_table(table, COLUMNS), "rate_hz": SCAN["camera"]["rate_hz"],
                "cycles_frame": [frame_args.width, frame_args.height, frame_args.samples]}
     if not args.no_save:
-        print(save_result("row_scaling", figures))
+        stored = save_result("row_scaling", figures)
+        print(stored)
+        print(plot_against_plants(stored, PANELS, PLOT))
 
 
 if __name__ == "__main__":

@@ -18,7 +18,6 @@ targets, into docs/images/scene_scaling.png; `--plot-only` redraws that picture 
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import math
 import os
@@ -29,9 +28,8 @@ import time
 from pathlib import Path
 
 import yaml
-from common import RESULTS, as_table, save_result
+from common import RESULTS, Panel, as_table, plot_against_plants, save_result
 
-from renderloop.io.atomic import write_bytes
 
 ROOT = Path(__file__).resolve().parents[1]
 ROW_PITCH = 3.4  # m: the greenhouse preset's compartment is this wide round its one row
@@ -97,60 +95,12 @@ COLUMNS = {"plants": "plants", "rows": "rows", "prototypes": "prototypes (0: eac
            "scene_json_mb": "scene.json, MB", "world_xml_mb": "world.xml, MB", "load_1min": "machine load"}
 
 
-def plot(results: Path, out: Path) -> Path:
-    """Draw the stored results against plants (log x), with the targets as dotted lines, into a small PNG at `out`.
-
-    The picture is drawn only from the results file, so it always shows the figures the docs' table shows.
-    """
-    try:
-        record = json.loads(results.read_text(encoding="utf-8"))
-        table = record["figures"]["table"]
-        column = {heading: [row[i] for row in table["rows"]] for i, heading in enumerate(table["columns"])}
-        series = {key: column[COLUMNS[key]] for key in ("plants", "stage_s", "process_s", "peak_rss_mb", "scene_json_mb")}
-    except OSError as error:
-        raise SystemExit(f"cannot read {results}: {error.strerror}; run benchmarks/scene_scaling.py first")
-    except (ValueError, KeyError, TypeError, IndexError) as error:
-        reason = f"it lacks {error}" if isinstance(error, KeyError) else str(error)
-        raise SystemExit(f"{results} is not a scene_scaling results file: {reason}")
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from PIL import Image
-
-    plants = series["plants"]
-    figure, axes = plt.subplots(1, 3, figsize=(9, 2.8))
-    panels = (
-        (axes[0], (("stage_s", "scene stage", "o-"), ("process_s", "whole process", "s--")), "seconds", TARGET_S, "60 s"),
-        (axes[1], (("peak_rss_mb", "peak memory", "o-"),), "peak memory, MB", TARGET_MB, "1 GB"),
-        (axes[2], (("scene_json_mb", "scene.json", "o-"),), "scene.json, MB", TARGET_JSON_MB, "5 MB"),
-    )
-    for axis, lines, label, target, said in panels:
-        for key, name, style in lines:
-            axis.plot(plants, series[key], style, color="#1f3b73" if style == "o-" else "#6b8cc7", label=name, markersize=4)
-        axis.axhline(target, color="#c0392b", linestyle=":", linewidth=1.2)
-        axis.annotate(f"target at 1000 plants: {said}", (0.03, target), xycoords=("axes fraction", "data"),
-                      textcoords="offset points", xytext=(0, -10), fontsize=7, color="#c0392b")
-        axis.set_xscale("log")
-        axis.set_xticks(plants, [str(p) for p in plants])
-        axis.minorticks_off()
-        axis.set_ylim(0, target * 1.1)
-        axis.set_xlabel("plants", fontsize=8)
-        axis.set_ylabel(label, fontsize=8)
-        axis.tick_params(labelsize=7)
-        axis.grid(alpha=0.3)
-    axes[0].legend(fontsize=7, loc="center left")
-    figure.suptitle(f"Measured {record.get('date', 'unknown')} on {record.get('machine', 'an unknown machine')}", fontsize=7)
-    figure.tight_layout()
-    drawn = io.BytesIO()
-    figure.savefig(drawn, format="png", dpi=110)
-    plt.close(figure)
-    # A few line colours on white: a 32-colour palette keeps the PNG small without visible loss.
-    small = io.BytesIO()
-    Image.open(drawn).convert("RGB").quantize(colors=32).save(small, format="PNG", optimize=True)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_bytes(out, small.getvalue())
-    return out
+PANELS = (
+    Panel("seconds", ((COLUMNS["stage_s"], "scene stage", "o-"), (COLUMNS["process_s"], "whole process", "s--")),
+          (TARGET_S, "60 s")),
+    Panel("peak memory, MB", ((COLUMNS["peak_rss_mb"], "peak memory", "o-"),), (TARGET_MB, "1 GB")),
+    Panel("scene.json, MB", ((COLUMNS["scene_json_mb"], "scene.json", "o-"),), (TARGET_JSON_MB, "5 MB")),
+)
 
 
 def main() -> None:
@@ -161,7 +111,7 @@ def main() -> None:
                         help=f"measure nothing: redraw {PLOT.relative_to(ROOT)} from benchmarks/results/scene_scaling.json")
     args = parser.parse_args()
     if args.plot_only:
-        print(plot(RESULTS / "scene_scaling.json", PLOT))
+        print(plot_against_plants(RESULTS / "scene_scaling.json", PANELS, PLOT))
         return
     table = []
     for plants in (int(size) for size in args.sizes.split(",")):
@@ -176,7 +126,7 @@ def main() -> None:
     if not args.no_save:
         stored = save_result("scene_scaling", figures)
         print(stored)
-        print(plot(stored, PLOT))
+        print(plot_against_plants(stored, PANELS, PLOT))
 
 
 if __name__ == "__main__":
