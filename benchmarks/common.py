@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import datetime
 import io
 import json
@@ -183,3 +184,25 @@ def plot_against_plants(results: Path, panels: tuple[Panel, ...], out: Path) -> 
     out.parent.mkdir(parents=True, exist_ok=True)
     write_bytes(out, small.getvalue())
     return out
+
+
+def scaling_arguments(description: str, name: str, panels: tuple[Panel, ...], plot: Path) -> argparse.Namespace | None:
+    """The command line of a benchmark measured at several plant counts (--sizes, --no-save), or None once
+    --plot-only has redrawn `plot` from the stored results of `name` alone."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--sizes", default="5,40,200,1000", help="plant counts, comma-separated")
+    parser.add_argument("--no-save", action="store_true", help="print only; do not write benchmarks/results/")
+    parser.add_argument("--plot-only", action="store_true",
+                        help=f"measure nothing: redraw {plot.name} from benchmarks/results/{name}.json")
+    args = parser.parse_args()
+    if args.plot_only:
+        print(plot_against_plants(RESULTS / f"{name}.json", panels, plot))
+        return None
+    return args
+
+
+def save_and_plot(name: str, figures: dict, panels: tuple[Panel, ...], plot: Path) -> None:
+    """`save_result`, then the plot of what it stored (`plot_against_plants`); prints both paths."""
+    stored = save_result(name, figures)
+    print(stored)
+    print(plot_against_plants(stored, panels, plot))

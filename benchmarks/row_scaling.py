@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 
 import yaml
-from common import RESULTS, Panel, as_table, plot_against_plants, save_result
+from common import Panel, as_table, save_and_plot, scaling_arguments
 from frame_scaling import run_case
 from scene_scaling import MOST_PER_ROW, overrides
 
@@ -90,14 +90,8 @@ PANELS = (
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", default="5,40,200,1000", help="plant counts, comma-separated")
-    parser.add_argument("--no-save", action="store_true", help="print only; do not write benchmarks/results/")
-    parser.add_argument("--plot-only", action="store_true",
-                        help=f"measure nothing: redraw {PLOT.relative_to(ROOT)} from benchmarks/results/row_scaling.json")
-    args = parser.parse_args()
-    if args.plot_only:
-        print(plot_against_plants(RESULTS / "row_scaling.json", PANELS, PLOT))
+    args = scaling_arguments(__doc__.splitlines()[0], "row_scaling", PANELS, PLOT)
+    if args is None:
         return
     frame_args = argparse.Namespace(width=320, height=240, samples=1, frames=3)
     table = []
@@ -107,9 +101,7 @@ def main() -> None:
     figures = {"table": as_table(table, COLUMNS), "rate_hz": SCAN["camera"]["rate_hz"],
                "cycles_frame": [frame_args.width, frame_args.height, frame_args.samples]}
     if not args.no_save:
-        stored = save_result("row_scaling", figures)
-        print(stored)
-        print(plot_against_plants(stored, PANELS, PLOT))
+        save_and_plot("row_scaling", figures, PANELS, PLOT)
 
 
 if __name__ == "__main__":

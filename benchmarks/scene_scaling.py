@@ -17,7 +17,6 @@ targets, into docs/images/scene_scaling.png; `--plot-only` redraws that picture 
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -28,7 +27,7 @@ import time
 from pathlib import Path
 
 import yaml
-from common import RESULTS, Panel, as_table, plot_against_plants, save_result
+from common import Panel, as_table, save_and_plot, scaling_arguments
 
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -104,14 +103,8 @@ PANELS = (
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", default="5,40,200,1000", help="plant counts, comma-separated")
-    parser.add_argument("--no-save", action="store_true", help="print only; do not write benchmarks/results/")
-    parser.add_argument("--plot-only", action="store_true",
-                        help=f"measure nothing: redraw {PLOT.relative_to(ROOT)} from benchmarks/results/scene_scaling.json")
-    args = parser.parse_args()
-    if args.plot_only:
-        print(plot_against_plants(RESULTS / "scene_scaling.json", PANELS, PLOT))
+    args = scaling_arguments(__doc__.splitlines()[0], "scene_scaling", PANELS, PLOT)
+    if args is None:
         return
     table = []
     for plants in (int(size) for size in args.sizes.split(",")):
@@ -124,9 +117,7 @@ def main() -> None:
         figures["process_40_over_5"] = round(by_size[40]["process_s"] / by_size[5]["process_s"], 2)
     print(json.dumps({key: value for key, value in figures.items() if key != "table"}))
     if not args.no_save:
-        stored = save_result("scene_scaling", figures)
-        print(stored)
-        print(plot_against_plants(stored, PANELS, PLOT))
+        save_and_plot("scene_scaling", figures, PANELS, PLOT)
 
 
 if __name__ == "__main__":
