@@ -247,10 +247,12 @@ def check_config(run_dir: Path, config: Config, remade: dict | None = None) -> N
     directory would make every later figure a lie. `remade`: fields (an override, set on both sides before they are
     compared) that decide only files the caller writes again at every call."""
     path = Path(run_dir) / names.CONFIG
-    made, given = _what_it_computes(load_resolved(path)) if path.is_file() else None, _what_it_computes(config)
-    if made is not None and remade:
+    if not path.is_file():
+        return
+    made, given = _what_it_computes(load_resolved(path)), _what_it_computes(config)
+    if remade:
         made, given = made.override(remade), given.override(remade)
-    if made is not None and made != given:
+    if made != given:
         raise UserError(f"{path}: this run directory was made with another config ({describe_changes(made, given)}); "
                         "use --force to start it again, or another --out")
 
