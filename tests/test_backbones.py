@@ -116,4 +116,17 @@ def test_the_pretrained_layers_learn_at_their_fraction_of_the_rate(tiny_dataset:
     state = torch.load(tmp_path / "m.ckpt", weights_only=True)
     groups = state["optimizer"]["param_groups"]
     assert len(groups) == 2 and groups[0]["initial_lr"] == pytest.approx(1e-4) and groups[1]["initial_lr"] == pytest.approx(1e-3)
-    assert len(groups[0]["params"]) == len(list(lite0_features().parameters()))
+    frozen = sum(1 for layer in list(lite0_features())[:settings.frozen_layers] for _ in layer.parameters())
+    assert frozen > 0 and len(groups[0]["params"]) == len(list(lite0_features().parameters())) - frozen
+
+
+def test_the_frozen_layers_keep_their_imagenet_weights_and_statistics_while_the_next_ones_learn(tiny_dataset: Path, tmp_path: Path):
+    settings = TrainSettings(epochs=1, batch_size=4, warmup_steps=1, max_steps=2, learning_rate=1e-2, frozen_layers=2)
+    train_detector(tiny_dataset, tmp_path / "m.onnx", settings, device="cpu", workers=0, log=lambda _: None)
+    trained = torch.load(tmp_path / "m.ckpt", weights_only=True)["model"]
+    imagenet = build_model("efficientnet-lite0").state_dict()
+    prefix = "backbone.features.0."
+    for layer in range(3):
+        names = [key for key in imagenet if key.startswith(f"{prefix}{layer}.") and "num_batches" not in key]
+        kept = [torch.equal(trained[key], imagenet[key]) for key in names]
+        assert all(kept) if layer < 2 else not any(kept), layer

@@ -157,6 +157,17 @@ def load_lite0(features: nn.Sequential, path: Path | None = None) -> nn.Linear:
     return classifier
 
 
+def frozen_layers(model: nn.Module, count: int) -> list[nn.Module]:
+    """Freeze the first `count` layers of a detector's EfficientNet-Lite0 (stem, then blocks: 6 reach stride 8) and
+    return them; the training loop keeps them in eval mode so that their batch norms keep ImageNet's statistics.
+    Freezing the early layers of a pretrained extractor is what lets a detector trained on renders only keep
+    real-image features (Hinterstoisser et al. 2018), and their backward pass is most of a CPU step's cost."""
+    layers = list(model.backbone.features[0])[:count]  # SSDlite's first part: the network up to the stride-16 tap
+    for layer in layers:
+        layer.requires_grad_(False)
+    return layers
+
+
 def lite0_extractor(pretrained: bool = True) -> nn.Module:
     """SSDlite's multi-scale feature extractor over EfficientNet-Lite0, with its ImageNet weights unless told not to."""
     features = lite0_features()

@@ -4,7 +4,8 @@ The network starts from its backbone's ImageNet weights (`backbones`), from rand
 weights (`--backbone mobilenet-v3`) or from an earlier model (`--init`). AdamW with a
 linear warm-up and a cosine decay over all epochs; the pretrained layers learn at a
 fraction of the rate of the new ones (`backbone_lr_factor`): at the full rate AdamW
-wipes out what they learned on ImageNet within a few hundred steps. After
+wipes out what they learned on ImageNet within a few hundred steps. The first of
+them (`frozen_layers`, down to stride 8) do not learn at all. After
 every epoch a checkpoint (model, optimiser, schedule, history, RNG states) that a
 later `renderloop train` with the same settings resumes from, and COCO mAP on the
 validation split (pycocotools). At the end the model is exported to ONNX and a
@@ -28,6 +29,7 @@ from renderloop.config.training import MOBILENET_V3, TrainSettings
 from renderloop.errors import UserError
 from renderloop.io.atomic import atomic_path, write_json
 from renderloop.perception.detector import CLASSES
+from renderloop.perception.training.backbones import frozen_layers
 from renderloop.perception.training.data import PepperBoxes, PhotoBoxes, collate
 from renderloop.perception.training.from_onnx import freeze_batch_norms, onnx_metadata, weights_from_onnx
 from renderloop.perception.training.ssd import backbone_of, build_model, export_onnx
@@ -84,12 +86,13 @@ def _load_checkpoint(path: Path, device: torch.device) -> dict:
 
 def _parameter_groups(model: torch.nn.Module, settings: TrainSettings) -> list[dict]:
     """The pretrained backbone at its fraction of the learning rate, the rest at the full rate; a network from random
-    weights learns at the full rate throughout."""
+    weights learns at the full rate throughout, and frozen layers not at all."""
     if settings.backbone == MOBILENET_V3:
         return [{"params": list(model.parameters())}]
     pretrained = {id(p) for p in model.backbone.features.parameters()}
-    backbone = [p for p in model.parameters() if id(p) in pretrained]
-    rest = [p for p in model.parameters() if id(p) not in pretrained]
+    learning = [p for p in model.parameters() if p.requires_grad]  # the frozen layers are nobody's
+    backbone = [p for p in learning if id(p) in pretrained]
+    rest = [p for p in learning if id(p) not in pretrained]
     return [{"params": backbone, "lr": settings.learning_rate * settings.backbone_lr_factor}, {"params": rest}]
 
 
@@ -170,6 +173,7 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
     frozen_norms = init is not None and Path(init).suffix == ".onnx"  # its batch norms are folded: keep them as they are
     if init is not None:
         model.load_state_dict(_initial_weights(Path(init), model, settings.backbone))
+    frozen = [] if settings.backbone == MOBILENET_V3 else frozen_layers(model, settings.frozen_layers)
     model = model.to(run_device)
     optimizer = torch.optim.AdamW(_parameter_groups(model, settings), lr=settings.learning_rate, weight_decay=settings.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _schedule(settings, len(loader)))
@@ -193,6 +197,8 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
     steps = start_epoch * len(loader)
     for epoch in range(start_epoch, settings.epochs):
         model.train()
+        for layer in frozen:
+            layer.eval()
         if frozen_norms:
             freeze_batch_norms(model)
         began, seen, losses = time.perf_counter(), 0, []
