@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import os
 import sys
 from pathlib import Path
 
@@ -15,6 +16,14 @@ from renderloop.scene.generate import generate_scene
 from renderloop.scene.model import Scene
 from renderloop.scene.stage import run_scene
 from renderloop.sim.stage import run_fly
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Each of the suite's test processes (pytest-xdist, `-n 2` in pyproject.toml) gets its share of the cores for
+    torch's thread pool, set before the test modules import torch: with pools as wide as the machine in both
+    processes, their threads spin on each other's cores and the detector's trainings take three times as long."""
+    if hasattr(config, "workerinput"):  # a test process; one run without xdist has the machine to itself
+        os.environ.setdefault("OMP_NUM_THREADS", str(max(1, (os.cpu_count() or 1) // config.workerinput["workercount"])))
 
 
 @functools.cache
