@@ -7,13 +7,19 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from renderloop.config import load_config
 from renderloop.io.csvtable import read_csv
 from renderloop.io.tum import read_tum
+from renderloop.planning.stage import run_plan
 from renderloop.planning.waypoints import read_waypoints, scan_target
-from renderloop.rundir.files import FLIGHT_HEADER
-from renderloop.scene.model import load_scene
+from renderloop.rundir import names
+from renderloop.rundir.files import FLIGHT_HEADER, read_trajectory
+from renderloop.scene.model import load_scene, read_scene
+from renderloop.scene.stage import run_scene
 from renderloop.scene.world import world_xml
-from renderloop.sim.flight import Flight
+from renderloop.sim import corridor
+from renderloop.sim.corridor import corridor_xml
+from renderloop.sim.flight import Flight, Reference, fly
 
 HOVER = np.array([0.0, -1.2, 1.0, 0.0, 0.0, 0.0, 0.0])
 
@@ -127,3 +133,33 @@ def test_position_noise_is_seeded(demo, tmp_path):
     assert np.array_equal(flown(1), flown(1))
     assert not np.array_equal(flown(1), flown(2))
     assert np.abs(flown(1)[:3] - HOVER[:3]).max() < 0.05
+
+
+# three rows of two plants 3.4 m apart (the greenhouse preset's pitch), the middle one scanned
+ROWS = {"greenhouse": {"size": [10.2, 6.0, 3.0], "tables": [[-3.4, 0.0], [0.0, 0.0], [3.4, 0.0]], "table_size": [0.3, 1.0, 0.1],
+                       "plants_per_table": 2, "workstation_center": [-3.4, -2.65]},
+        "planner": {"row": 1, "bands": 1, "points_per_ellipse": 4}}
+
+
+def test_a_flight_in_its_paths_corridor_is_the_whole_worlds_flight_to_the_bit(tmp_path, monkeypatch):
+    config = load_config("greenhouse", seed=0).override(ROWS)
+    run_scene(tmp_path, config)
+    run_plan(tmp_path, config)
+    table, world = read_trajectory(tmp_path), tmp_path / names.WORLD
+    reference = Reference(table[:, 0], table[:, 1:8], table[:, 8:15], table[:, 15:22])
+    text, kept, dropped = corridor_xml(world, reference.q[:, :3])
+    left = mujoco.MjModel.from_xml_string(text)
+    plants = {f"plant_{plant.id}": plant.position[0] for plant in read_scene(tmp_path).plants}
+    names_left = {left.geom(i).name for i in range(left.ngeom)}
+    assert {name for name, x in plants.items() if name in names_left} == {name for name, x in plants.items() if x == 0.0}
+    assert left.ngeom == kept and dropped > 0
+    whole = fly(mujoco.MjModel.from_xml_path(str(world)), config, reference)
+    fields = ("position", "quaternion", "joints", "rotor_speeds", "camera_position", "contacts", "saturated")
+    flown = []  # the worlds each flight is flown in
+    monkeypatch.setattr(corridor, "fly", lambda model, *args: flown.append(model.ngeom) or fly(model, *args))
+    in_corridor = corridor.fly_in_corridor(world, config, reference)
+    assert flown == [kept] and all(np.array_equal(getattr(in_corridor, f), getattr(whole, f)) for f in fields)
+    # a flight that strays from its plan farther than the margin is flown again in the whole world
+    monkeypatch.setattr(corridor, "MARGIN", 0.0)
+    corridor.fly_in_corridor(world, config, reference)
+    assert flown[-1] == kept + dropped and len(flown) == 3

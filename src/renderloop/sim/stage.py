@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import mujoco
 import numpy as np
 
 from renderloop.config import Config
@@ -13,7 +12,8 @@ from renderloop.robot.kinematics import planned_camera_positions
 from renderloop.rundir import files, names
 from renderloop.rundir.stage import Job, Stage
 from renderloop.scene.model import read_scene
-from renderloop.sim.flight import FlightLog, Reference, camera_frames, flight_table, fly
+from renderloop.sim.corridor import fly_in_corridor
+from renderloop.sim.flight import FlightLog, Reference, camera_frames, flight_table
 from renderloop.sim.plots import draw_flight_paths, draw_tracking_error
 
 
@@ -31,8 +31,7 @@ def _fly(run_dir: Path, config: Config, job: Job) -> None:
     table = files.read_trajectory(run_dir)
     read_waypoints(run_dir)  # every input is read before any output is replaced
     reference = Reference(table[:, 0], table[:, 1:8], table[:, 8:15], table[:, 15:22])
-    model = mujoco.MjModel.from_xml_path(str(run_dir / names.WORLD))
-    log = fly(model, config, reference)
+    log = fly_in_corridor(run_dir / names.WORLD, config, reference)
     write_flight(run_dir, config, log, camera_frames(log, reference.t[-1], config.camera.rate_hz))
 
 
