@@ -12,7 +12,7 @@ import numpy as np
 
 from renderloop.errors import UserError
 from renderloop.robot.kinematics import yaw_quaternion_wxyz
-from renderloop.robot.mjcf import JOINT_NAMES
+from renderloop.robot.mjcf import JOINT_NAMES, ROBOT_BODY
 
 CLEARANCE = 0.03  # m
 CHECK_PERIOD = 0.1  # s between checked samples
@@ -35,7 +35,7 @@ def check_trajectory(model: mujoco.MjModel, t: np.ndarray, q: np.ndarray, room: 
         raise Clash(f"planner: the trajectory leaves the greenhouse at t={t[k]:.2f} s, position {np.round(q[k, :3], 2).tolist()}",
                     float(t[k]))
     data = mujoco.MjData(model)
-    uav = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "uav")
+    uav = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, ROBOT_BODY)
     robot_geom = model.geom_bodyid >= uav
     saved_margin = model.geom_margin.copy()
     model.geom_margin[robot_geom] = CLEARANCE

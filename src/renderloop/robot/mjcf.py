@@ -19,6 +19,7 @@ from renderloop.robot.kinematics import OPTICAL_IN_LINK
 from renderloop.robot.rotors import rotor_geometry
 
 ROBOT_CLASS = "robot"
+ROBOT_BODY = "uav"  # the free body at the root of the robot's tree
 ROTOR_HEIGHT = 0.05  # propeller plane above the body centre, m
 CAMERA_SITE = "camera_optical"
 CAMERA_NAME = "rgbd"
@@ -44,7 +45,7 @@ def _rod_inertia(mass: float, length: float, radius: float = 0.01) -> str:
 def robot_body(robot: RobotConfig, camera: CameraConfig) -> ET.Element:
     """The `uav` body subtree, resting on its legs at the configured home point."""
     home = robot.home
-    uav = ET.Element("body", name="uav", pos=fmt(home[0], home[1], home[2] + robot.leg_length + 0.008), childclass=ROBOT_CLASS)
+    uav = ET.Element("body", name=ROBOT_BODY, pos=fmt(home[0], home[1], home[2] + robot.leg_length + 0.008), childclass=ROBOT_CLASS)
     ET.SubElement(uav, "freejoint", name=ROOT_JOINT)
     ET.SubElement(uav, "inertial", pos="0 0 0", mass=repr(robot.mass), diaginertia=fmt(*robot.inertia))
     ET.SubElement(uav, "geom", name="uav_frame", type="box", size=fmt(0.09, 0.09, 0.035), material="uav_body")

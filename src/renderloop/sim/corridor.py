@@ -20,6 +20,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from renderloop.config import Config
+from renderloop.robot.mjcf import ROBOT_BODY
 from renderloop.sim.flight import FlightLog, Reference, fly
 
 MARGIN = 0.5  # m beyond the robot's extent: tracking errors are centimetres (docs/stages/fly.md), a strayed flight is redone
@@ -55,7 +56,7 @@ def corridor_xml(world: Path, body_path: np.ndarray) -> tuple[str | None, int, i
     every geom is within reach), and how many geoms it keeps and drops."""
     text = world.read_text(encoding="utf-8")
     model = mujoco.MjModel.from_xml_string(text)
-    reach = robot_extent(model, model.body("uav").id) + MARGIN + SPACING / 2
+    reach = robot_extent(model, model.body(ROBOT_BODY).id) + MARGIN + SPACING / 2
     static = np.flatnonzero(model.body_rootid[model.geom_bodyid] == 0)
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)

@@ -21,7 +21,7 @@ from renderloop.control.arm import ArmController
 from renderloop.control.uav import UavController
 from renderloop.errors import UserError
 from renderloop.robot.kinematics import yaw_quaternion_wxyz
-from renderloop.robot.mjcf import CAMERA_SITE, JOINT_NAMES
+from renderloop.robot.mjcf import CAMERA_SITE, JOINT_NAMES, ROBOT_BODY
 from renderloop.robot.rotors import RotorModel
 
 XYZW = [4, 5, 6, 3]  # the free joint's quaternion in qpos, reordered to qx qy qz qw
@@ -93,7 +93,7 @@ class Flight:
         self.rng = np.random.default_rng(np.random.SeedSequence([seed, 0xF1]))
         self.noise = controller.position_noise_std
         self.compensate_pitch = controller.compensate_arm_pitch
-        uav = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "uav")
+        uav = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, ROBOT_BODY)
         self.total_mass = float(model.body_subtreemass[uav])
         self.rotors = RotorModel(config.robot)
         self.config = config
