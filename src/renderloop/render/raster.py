@@ -43,8 +43,8 @@ GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)  # an int: numpy compares an array with the
 
 def _mesh_asset(asset: ET.Element, files: dict[str, bytes], name: str, mesh) -> None:
     """A mesh asset read from MuJoCo's binary MSH format in memory (`files`, handed to the compiler with the MJCF):
-    as text, the vertices and faces of a compartment's fruit made a 200 MB MJCF whose parsing took four times the
-    memory of the model it made."""
+    as text, the 6 million fruit vertices in reach of the middle row of five made a 200 MB MJCF, and that render world
+    took 40 s to build against 24 s this way."""
     vertices, faces = np.asarray(mesh.vertices, np.float32), np.asarray(mesh.faces, np.int32)
     header = np.array([len(vertices), 0, 0, len(faces)], np.int32)  # vertices, normals, texture coordinates, faces
     files[f"{name}.msh"] = header.tobytes() + vertices.tobytes() + faces.tobytes()

@@ -3,8 +3,8 @@
 A MuJoCo step recomputes the pose of every geom, static ones too, and tests the robot against the greenhouse's: in
 a five-row compartment of 1000 plants (4790 geoms) a step costs 2.5 times what it costs in one row of 200 (968
 geoms; `mj_kinematics` alone 28 µs against 6), although one row's flight comes near a fifth of them. So the fly
-stage flies in the corridor: the static geoms whose bounding sphere comes within the robot's reach of the planned
-path of its body, where the reach is the robot's extent from its body's centre (whatever its joints do) plus
+stage flies in the corridor: the static geoms whose box comes within the robot's reach of the planned path of its
+body, where the reach is the robot's extent from its body's centre (whatever its joints do) plus
 `MARGIN` for the tracking error. A geom the robot could touch is never dropped and the kept ones keep their order,
 so the flight is the whole world's to the bit; the flown path is checked against the plan afterwards, and a flight
 that strayed farther than `MARGIN` is flown again in the whole world.
