@@ -73,6 +73,32 @@ def test_onnx_model_gives_the_torch_models_outputs(tmp_path: Path):
     assert all(0 <= d.bbox[0] <= d.bbox[2] <= 320 and 0 <= d.bbox[1] <= d.bbox[3] <= 240 for d in found)
 
 
+def test_a_model_exported_with_a_larger_input_keeps_its_default_boxes_sizes_in_pixels(tmp_path: Path):
+    model = jittered_model(4)
+    trained, larger = DecodedSSD(model).anchors, DecodedSSD(model, 448).anchors
+    assert len(larger) > len(trained)  # a finer grid of default boxes over the larger input
+
+    def sizes(anchors: torch.Tensor, size: int) -> set:
+        inside = (anchors[:, :2] > 0).all(1) & (anchors[:, 2:] < size).all(1)  # boxes clipped at the border are smaller
+        return {tuple(v) for v in torch.round(anchors[inside, 2:] - anchors[inside, :2], decimals=2).tolist()}
+
+    # every size the network trained with is there, the smallest still 0.04 of the trained input; only boxes that the
+    # smaller input clipped at its border come whole as well
+    assert sizes(trained, 320) <= sizes(larger, 448)
+    assert min(w * h for w, h in sizes(larger, 448)) == pytest.approx(0.04 * 320 * 0.04 * 320, rel=1e-3)
+    path = tmp_path / "model448.onnx"
+    export_onnx(model, path, input_size=448)
+    detector = Detector(path)
+    assert detector.input_size == 448
+    rgb = (np.random.default_rng(5).random((480, 640, 3)) * 255).astype(np.uint8)
+    boxes, scores = detector.raw(rgb)
+    with torch.no_grad():
+        expected_boxes, expected_scores = DecodedSSD(model, 448).eval()(torch.from_numpy(to_input(rgb, 448)))
+    assert np.allclose(boxes, expected_boxes.numpy(), atol=1e-3) and np.allclose(scores, expected_scores.numpy(), atol=2e-5)
+    found = detector.detect(rgb, 0.3)
+    assert found and all(0 <= d.bbox[0] <= d.bbox[2] <= 640 and 0 <= d.bbox[1] <= d.bbox[3] <= 480 for d in found)
+
+
 def test_learning_rate_warms_up_linearly_then_decays_to_zero_over_the_run():
     factor = _schedule(TrainSettings(epochs=2, warmup_steps=10), steps_per_epoch=25)
     rates = [factor(step) for step in range(50)]
@@ -94,7 +120,12 @@ def test_training_checkpoints_resumes_and_exports(tiny_dataset: Path, tmp_path: 
     assert {"map50", "map", "ap50_ripe", "ap50_unripe", "loss"} <= set(record["history"][-1])
     assert json.loads(out.with_suffix(".json").read_text())["train_images"] == 8
     detector = Detector(out)
-    assert detector.detect(np.zeros((72, 96, 3), np.uint8), 0.0) is not None
+    assert detector.input_size == 320 and detector.detect(np.zeros((72, 96, 3), np.uint8), 0.0) is not None
+    # the finished run given another input size exports the same weights again, without training
+    again = train_detector(tiny_dataset, out, settings, device="cpu", workers=0, log=lambda _: None, input_size=384)
+    assert again["history"] == record["history"] and Detector(out).input_size == 384
+    with pytest.raises(UserError, match="--input-size 330: give a multiple of 32 from 160 to 1280 px"):
+        train_detector(tiny_dataset, out, settings, device="cpu", workers=0, log=lambda _: None, input_size=330)
     with pytest.raises(UserError, match="other settings"):
         train_detector(tiny_dataset, out, TrainSettings(epochs=3, batch_size=4), device="cpu", workers=0, log=lambda _: None)
 

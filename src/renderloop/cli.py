@@ -31,7 +31,7 @@ from renderloop.config.training import DEVICES as TRAIN_DEVICES
 from renderloop.config.dataset import DatasetSpec
 from renderloop.errors import UserError, did_you_mean
 from renderloop.io.atomic import final_path
-from renderloop.perception.detector import CLASSES
+from renderloop.perception.detector import CLASSES, INPUT_SIZE
 
 # Each command imports the stages it runs inside its own body: `renderloop fly` has no use for the detector,
 # scikit-learn or Ray, and importing them would be a large part of its time.
@@ -304,6 +304,9 @@ def train(
     coco: Annotated[Path | None, typer.Option(help="With --photos: their COCO labels, as `score-photos` reads them.")] = None,
     photo_class: Annotated[str | None, Choice(CLASSES, "With --photos: the class of boxes whose category names no "
                                               "ripeness (a one-class set).")] = None,
+    input_size: Annotated[int, typer.Option(help="Square input of the exported model, px (a multiple of 32): the network "
+                                            "trains at 320; larger shows small fruit larger, at the square of the cost. "
+                                            "Given to a finished run, exports its model again.")] = INPUT_SIZE,
 ) -> None:
     """Train the pepper detector (SSDlite) from ImageNet or --init weights; resumes from its checkpoint; exports ONNX."""
     from renderloop.perception.detector import shipped_model
@@ -324,7 +327,7 @@ def train(
     settings = checked(TrainSettings, "train", **{name: value for name, value in given.items() if value is not None})
     own = Photos(photos, coco, photo_class) if photos is not None else None
     record = train_detector(dataset_dirs or [], out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True),
-                            init=init, photos=own)
+                            init=init, photos=own, input_size=input_size)
     last = record["history"][-1] if record["history"] else {}
     typer.echo(f"train: wrote {out} (val mAP@0.5 {last.get('map50', float('nan')):.3f})")
 

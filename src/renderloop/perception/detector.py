@@ -4,7 +4,9 @@ Post-processing mirrors torchvision's SSD (`postprocess_detections`): per class,
 scores above a floor, the top 300 candidates, class-wise NMS at IoU 0.55, at most
 300 detections; then the caller's score threshold. Frames of any size are resized
 to the network input with PIL's antialiased bilinear filter (a 640x480 frame then
-looks like the 320 px renders the network was trained on) and boxes are scaled back.
+looks like the 320 px renders the network was trained on) and boxes are scaled back. A model may be
+exported with a larger square input than the 320 px it trained at (`training.ssd.export_onnx`): the
+frame then reaches it less shrunk, and its default boxes keep the pixel sizes it learned.
 With window `layouts` the frame's overlapping windows are searched as well (`tiling`), with
 `mirror` the frame mirrored left to right (a second look at the same pixels that errs
 elsewhere: the network is not exactly symmetric), and what the passes found is merged
@@ -28,7 +30,8 @@ from renderloop.perception.fusion import fuse
 from renderloop.perception.tiling import Layout, all_windows, cut_by_window
 
 CLASSES = ("ripe", "unripe")
-INPUT_SIZE = 320
+INPUT_SIZE = 320  # px a side: what the network trains at, and the input of a model exported without a size
+INPUT_SIZES = range(160, 1281, 32)  # the square inputs a model may be exported with (the network's stride is 32)
 NMS_IOU = 0.55
 TOPK_CANDIDATES = 300
 MAX_DETECTIONS = 300
@@ -51,9 +54,10 @@ def shipped_model() -> Path:
     return Path(str(resources.files("renderloop.perception").joinpath("model", SHIPPED_MODEL)))
 
 
-def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, score_threshold: float) -> list[Detection]:
-    """Network outputs (boxes in input pixels, (A, 4); class probabilities, (A, 1 + classes)) to detections
-    in pixels of a `width` x `height` frame. NMS runs in float32 in the input's pixels, as torchvision's does,
+def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, score_threshold: float,
+                input_size: int = INPUT_SIZE) -> list[Detection]:
+    """Network outputs (boxes in pixels of its `input_size` square input, (A, 4); class probabilities,
+    (A, 1 + classes)) to detections in pixels of a `width` x `height` frame. NMS runs in float32 in the input's pixels, as torchvision's does,
     so that borderline overlaps are decided the same way.
 
     Boxes under `score_threshold` are dropped before NMS, not after: a box is only ever
@@ -73,7 +77,7 @@ def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, 
     # class-wise NMS in one pass: boxes of different classes are moved apart so they never overlap (torchvision's trick)
     offsets = (labels[:, None] * (cand_boxes.max() + 1.0)).astype(np.float32)
     keep = nms(cand_boxes + offsets, cand_scores, NMS_IOU)[:MAX_DETECTIONS]
-    scale = np.array([width, height, width, height], dtype=np.float64) / INPUT_SIZE
+    scale = np.array([width, height, width, height], dtype=np.float64) / input_size
     return [Detection(tuple(float(v) for v in cand_boxes[k] * scale), float(cand_scores[k]), CLASSES[labels[k] - 1])
             for k in keep]
 
@@ -99,11 +103,11 @@ def contract_breach(boxes: np.ndarray, scores: np.ndarray) -> str | None:
     return None
 
 
-def to_input(rgb: np.ndarray) -> np.ndarray:
-    """(H, W, 3) uint8 to the network's (1, 3, 320, 320) float32 in [0, 1]."""
+def to_input(rgb: np.ndarray, size: int = INPUT_SIZE) -> np.ndarray:
+    """(H, W, 3) uint8 to the network's (1, 3, size, size) float32 in [0, 1]."""
     image = Image.fromarray(rgb)
-    if image.size != (INPUT_SIZE, INPUT_SIZE):
-        image = image.resize((INPUT_SIZE, INPUT_SIZE), Image.BILINEAR)
+    if image.size != (size, size):
+        image = image.resize((size, size), Image.BILINEAR)
     return (np.asarray(image, dtype=np.float32) / 255.0).transpose(2, 0, 1)[None]
 
 
@@ -126,8 +130,10 @@ class Detector:
             raise UserError(f"{self.path}: not an ONNX model ({str(error).splitlines()[0][:120]})") from None
         inputs = [(i.name, i.shape) for i in self.session.get_inputs()]
         outputs = [o.name for o in self.session.get_outputs()]
-        if inputs != [("images", [1, 3, INPUT_SIZE, INPUT_SIZE])] or outputs != ["boxes", "scores"]:
+        size = inputs[0][1][-1] if len(inputs) == 1 and len(inputs[0][1]) == 4 else None
+        if inputs != [("images", [1, 3, size, size])] or size not in INPUT_SIZES or outputs != ["boxes", "scores"]:
             raise UserError(f"{self.path}: not a renderloop pepper detector (inputs {inputs}, outputs {outputs})")
+        self.input_size: int = size
         if self.session.get_inputs()[0].type != "tensor(float)":
             raise UserError(f"{self.path}: not a renderloop pepper detector (input images is "
                             f"{self.session.get_inputs()[0].type}, not float32)")
@@ -136,7 +142,7 @@ class Detector:
     def _probe(self) -> None:
         """One pass on a grey frame, its outputs held to the contract (perception/training/ssd.py): a model that
         breaks it is refused here, at load, not by an IndexError or a NaN in detections.json hours into a run."""
-        grey = np.full((1, 3, INPUT_SIZE, INPUT_SIZE), 0.5, dtype=np.float32)
+        grey = np.full((1, 3, self.input_size, self.input_size), 0.5, dtype=np.float32)
         try:
             boxes, scores = self.session.run(None, {"images": grey})
         except Exception as error:  # ORT's own exception types: a graph that cannot run on its declared input
@@ -146,7 +152,7 @@ class Detector:
             raise UserError(f"{self.path}: not a renderloop pepper detector ({wrong})")
 
     def raw(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        boxes, scores = self.session.run(None, {"images": to_input(rgb)})
+        boxes, scores = self.session.run(None, {"images": to_input(rgb, self.input_size)})
         return boxes, scores
 
     def detect(self, rgb: np.ndarray, score_threshold: float, layouts: Sequence[Layout] = (), mirror: bool = False
@@ -158,7 +164,7 @@ class Detector:
         height, width = rgb.shape[:2]
         whole = (0, 0, width, height)
         passes = [(whole, False), *([(whole, True)] if mirror else []),
-                  *((window, False) for window in all_windows(width, height, layouts, INPUT_SIZE))]
+                  *((window, False) for window in all_windows(width, height, layouts, self.input_size))]
         if len(passes) == 1:
             return self._detect_once(rgb, score_threshold)
         floor = min(PASS_FLOOR, score_threshold)
@@ -181,4 +187,4 @@ class Detector:
 
     def _detect_once(self, rgb: np.ndarray, score_threshold: float) -> list[Detection]:
         boxes, scores = self.raw(rgb)
-        return postprocess(boxes, scores, rgb.shape[1], rgb.shape[0], score_threshold)
+        return postprocess(boxes, scores, rgb.shape[1], rgb.shape[0], score_threshold, self.input_size)

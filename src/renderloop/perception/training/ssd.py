@@ -7,8 +7,9 @@ after ONNX Runtime (`renderloop.perception.detector`), the same code for every
 backend, so the exported file has no data-dependent shapes and its outputs can be
 compared with torch's number for number.
 
-ONNX contract: input `images` float32 (1, 3, 320, 320) RGB in [0, 1] (the frame
-resized to the input, aspect not kept, as torchvision's SSD transform does);
+ONNX contract: input `images` float32 (1, 3, S, S) RGB in [0, 1] (the frame
+resized to the input, aspect not kept, as torchvision's SSD transform does; S is 320, the
+size the network trains at, unless the model was exported with another);
 outputs `boxes` (A, 4) x0 y0 x1 y1 in pixels of the input, and `scores`
 (A, 3) softmax class probabilities, background first.
 """
@@ -78,37 +79,46 @@ def backbone_of(name: str) -> str | None:
 
 
 class DecodedSSD(nn.Module):
-    """Network plus box decoding for one image already at the input size (the ONNX graph)."""
+    """Network plus box decoding for one image already at the `input_size` square input (the ONNX graph).
 
-    def __init__(self, model: nn.Module) -> None:
+    At an input larger than the one it trained at, the network's feature maps grow and so
+    does the grid of default boxes, but each box keeps its size in pixels: the head learned
+    to regress from boxes of those sizes on features of a fruit of so many pixels. Default
+    boxes that grew with the input would come out scaled by the input's growth."""
+
+    def __init__(self, model: nn.Module, input_size: int = INPUT_SIZE) -> None:
         super().__init__()
-        self.model = model
+        self.model, self.input_size = model, input_size
         transform = model.transform
         self.register_buffer("mean", torch.tensor(transform.image_mean).view(1, 3, 1, 1))
         self.register_buffer("std", torch.tensor(transform.image_std).view(1, 3, 1, 1))
+        generator = model.anchor_generator
+        if input_size != INPUT_SIZE:
+            generator = DefaultBoxGenerator(generator.aspect_ratios, scales=[s * INPUT_SIZE / input_size for s in generator.scales])
         with torch.no_grad():
-            dummy = torch.zeros(1, 3, INPUT_SIZE, INPUT_SIZE)
+            dummy = torch.zeros(1, 3, input_size, input_size)
             features = list(model.backbone(dummy).values())
-            anchors = model.anchor_generator(ImageList(dummy, [(INPUT_SIZE, INPUT_SIZE)]), features)[0]
+            anchors = generator(ImageList(dummy, [(input_size, input_size)]), features)[0]
         self.register_buffer("anchors", anchors)
 
     def forward(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         features = list(self.model.backbone((images - self.mean) / self.std).values())
         head = self.model.head(features)
         boxes = self.model.box_coder.decode_single(head["bbox_regression"][0], self.anchors)
-        return boxes.clamp(0.0, float(INPUT_SIZE)), torch.softmax(head["cls_logits"][0], dim=-1)
+        return boxes.clamp(0.0, float(self.input_size)), torch.softmax(head["cls_logits"][0], dim=-1)
 
 
-def export_onnx(model: nn.Module, path: Path, metadata: dict[str, str] | None = None) -> None:
-    """Write the ONNX graph (classic TorchScript exporter, opset 17) with the backbone and the classes in its metadata."""
+def export_onnx(model: nn.Module, path: Path, metadata: dict[str, str] | None = None, input_size: int = INPUT_SIZE) -> None:
+    """Write the ONNX graph (classic TorchScript exporter, opset 17) for an `input_size` square input, with the backbone
+    and the classes in its metadata."""
     import onnx
 
     from renderloop.io.atomic import atomic_path
 
     model = model.eval()
-    wrapper = DecodedSSD(model).eval()
+    wrapper = DecodedSSD(model, input_size).eval()
     with atomic_path(Path(path)) as tmp:
-        torch.onnx.export(wrapper, (torch.zeros(1, 3, INPUT_SIZE, INPUT_SIZE),), str(tmp), input_names=["images"],
+        torch.onnx.export(wrapper, (torch.zeros(1, 3, input_size, input_size),), str(tmp), input_names=["images"],
                           output_names=["boxes", "scores"], opset_version=OPSET, dynamo=False)
         graph = onnx.load(str(tmp))
         entries = {"renderloop_detector": detector_name(model.renderloop_backbone), "classes": ",".join(CLASSES), **(metadata or {})}

@@ -28,7 +28,7 @@ import torch
 from renderloop.config.training import MOBILENET_V3, TrainSettings
 from renderloop.errors import UserError
 from renderloop.io.atomic import atomic_path, write_json
-from renderloop.perception.detector import CLASSES
+from renderloop.perception.detector import CLASSES, INPUT_SIZE, INPUT_SIZES
 from renderloop.perception.training.backbones import frozen_layers
 from renderloop.perception.training.data import PepperBoxes, PhotoBoxes, collate
 from renderloop.perception.training.from_onnx import freeze_batch_norms, onnx_metadata, weights_from_onnx
@@ -138,16 +138,20 @@ class Photos:
 
 
 def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettings, device: str = "auto", workers: int = 1,
-                   log: Log = print, init: Path | None = None, photos: Photos | None = None) -> dict:
+                   log: Log = print, init: Path | None = None, photos: Photos | None = None,
+                   input_size: int = INPUT_SIZE) -> dict:
     """Train on the train splits of one or more datasets together, and on `photos` if given; each dataset's val split
     is scored apart (figures of sets of different difficulty would not mean anything mixed), the first's as the
     headline figures. Photos have no validation split: score the model on photos it did not train on with
-    `renderloop score-photos`."""
+    `renderloop score-photos`. The network trains at 320 px and is exported for an `input_size` square input; a
+    finished run given another size exports its model again."""
     datasets, out = [Path(d) for d in (datasets if isinstance(datasets, list) else [datasets])], Path(out)
     if not datasets and photos is None:
         raise UserError("give a dataset folder made by `renderloop dataset`, or --photos with --coco, to train on")
     if out.suffix != ".onnx":
         raise UserError(f"--out {out}: the model file must end in .onnx")
+    if input_size not in INPUT_SIZES:
+        raise UserError(f"--input-size {input_size}: give a multiple of 32 from {INPUT_SIZES[0]} to {INPUT_SIZES[-1]} px")
     checkpoint_path = out.with_suffix(".ckpt")
     if not checkpoint_path.is_file():  # a resumed run's files are its own; without a checkpoint, nothing here is ours
         for path in (out, out.with_suffix(".json")):
@@ -233,6 +237,7 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
 
     model.cpu().eval()
     final = record["history"][-1] if record["history"] else {}
-    export_onnx(model, out, {"epochs": str(len(record["history"])), "val_map50": str(final.get("map50", "n/a"))})
+    record["input_size"] = input_size
+    export_onnx(model, out, {"epochs": str(len(record["history"])), "val_map50": str(final.get("map50", "n/a"))}, input_size)
     write_json(out.with_suffix(".json"), record)
     return record
