@@ -88,22 +88,28 @@ def torch_and_onnx_ms(frame: np.ndarray, repeats: int) -> tuple[list[float], lis
     return torch_ms, timed(lambda: onnx.detect(frame, 0.5), repeats)
 
 
+EXPORT_SIZES = (320, 384, 416, 448)  # square inputs the pretrained backbone's detector is timed at
+
+
 def backbone_pass_ms(frame: np.ndarray, repeats: int) -> dict[str, dict]:
     """One pass of the whole frame through each backbone's detector (random weights: speed does not depend on them)
-    with ONNX Runtime on one core, side by side."""
+    with ONNX Runtime on one core, side by side; the default backbone's at each of EXPORT_SIZES."""
     import tempfile
     from pathlib import Path
 
-    from renderloop.config.training import BACKBONES
+    from renderloop.config.training import BACKBONES, DEFAULT_BACKBONE
+    from renderloop.perception.detector import INPUT_SIZE
     from renderloop.perception.training.ssd import build_model, export_onnx
 
     figures = {}
     for backbone in BACKBONES:
-        with tempfile.TemporaryDirectory() as folder:
-            path = Path(folder) / f"{backbone}.onnx"
-            export_onnx(build_model(backbone, pretrained=False).eval(), path)
-            detector = Detector(path, threads=1)
-        figures[backbone] = summary(timed(lambda: detector.detect(frame, 0.5), repeats))
+        model = build_model(backbone, pretrained=False).eval()
+        for size in EXPORT_SIZES if backbone == DEFAULT_BACKBONE else (INPUT_SIZE,):
+            with tempfile.TemporaryDirectory() as folder:
+                path = Path(folder) / f"{backbone}.onnx"
+                export_onnx(model, path, input_size=size)
+                detector = Detector(path, threads=1)
+            figures[f"{backbone} {size}"] = summary(timed(lambda: detector.detect(frame, 0.5), repeats))
     return figures
 
 
