@@ -4,8 +4,8 @@ Post-processing mirrors torchvision's SSD (`postprocess_detections`): per class,
 scores above a floor, the top 300 candidates, class-wise NMS at IoU 0.55, at most
 300 detections; then the caller's score threshold. Frames of any size are resized
 to the network input with PIL's antialiased bilinear filter (a 640x480 frame then
-looks like the 320 px renders the network was trained on) and boxes are scaled back. A model may be
-exported with a larger square input than the 320 px it trained at (`training.ssd.export_onnx`): the
+looks like the 320 px renders the network was trained on) and boxes are scaled back. A model
+may be exported with a larger square input than the 320 px it trained at (`training.ssd`): the
 frame then reaches it less shrunk, and its default boxes keep the pixel sizes it learned.
 With window `layouts` the frame's overlapping windows are searched as well (`tiling`), with
 `mirror` the frame mirrored left to right (a second look at the same pixels that errs
@@ -57,8 +57,8 @@ def shipped_model() -> Path:
 def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, score_threshold: float,
                 input_size: int = INPUT_SIZE) -> list[Detection]:
     """Network outputs (boxes in pixels of its `input_size` square input, (A, 4); class probabilities,
-    (A, 1 + classes)) to detections in pixels of a `width` x `height` frame. NMS runs in float32 in the input's pixels, as torchvision's does,
-    so that borderline overlaps are decided the same way.
+    (A, 1 + classes)) to detections in pixels of a `width` x `height` frame. NMS runs in float32 in the
+    input's pixels, as torchvision's does, so that borderline overlaps are decided the same way.
 
     Boxes under `score_threshold` are dropped before NMS, not after: a box is only ever
     suppressed by a higher-scoring one, so the detections above the threshold are the
