@@ -1,0 +1,76 @@
+"""Detector models and passes side by side on rendered runs the models never trained on: for each case, the
+recall of the findable ripe fruit at the lowest threshold with at most 5 % false detections (`renderloop
+threshold`'s rule), and that recall by the fruit's shorter side in pixels, where small fruit show.
+
+    .venv/bin/python benchmarks/detector_passes.py RUN... --case NAME=MODEL:WINDOWS:MIRROR ... [--name NAME]
+
+WINDOWS is `2x2,3x2` or `none`, MIRROR `mirror` or `none`; MODEL `shipped` or an ONNX file. Writes
+`benchmarks/results/NAME.json` (default detector_passes) with a row a case.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from common import as_table, save_result
+
+from renderloop.config import Config
+from renderloop.perception.detector import Detector
+from renderloop.perception.scoring import findable, match
+from renderloop.perception.threshold import choose, score_thresholds, search_run
+
+SIDES = ((20, 30), (30, 50), (50, 100), (100, None))  # px, the shorter side of a fruit's mask box at the frame's size
+MAX_FALSE = 0.05
+
+
+def recall_by_side(runs, threshold: float) -> dict[str, float]:
+    found, total = [0] * len(SIDES), [0] * len(SIDES)
+    for run in runs:
+        ripe = {p.id: p.ripe for p in run.scene.peppers}
+        for detections, truth in run.frames:
+            hits = set(match([d for d in detections if d["score"] >= threshold], truth.peppers).values())
+            for pepper, box in truth.peppers.items():
+                if not (ripe[pepper] and findable(box)):
+                    continue
+                side = min(box[2] - box[0], box[3] - box[1])
+                for k, (low, high) in enumerate(SIDES):
+                    if low <= side and (high is None or side < high):
+                        found[k] += pepper in hits
+                        total[k] += 1
+    return {f"{low}-{high or 'up'}": round(f / t, 3) if t else None for (low, high), f, t in zip(SIDES, found, total)}
+
+
+def measure(run_dirs: list[Path], model: str, windows: str, mirror: str) -> dict:
+    settings = Config().override({"detector": {"windows": [] if windows == "none" else windows.split(","),
+                                               "mirror": mirror == "mirror"}}).detector
+    detector = Detector(None if model == "shipped" else Path(model), threads=1)
+    runs = [search_run(run_dir, detector, settings) for run_dir in run_dirs]
+    chosen = choose(score_thresholds(runs), MAX_FALSE)
+    if chosen is None:
+        return {"threshold": None, "recall": 0.0, "false_pct": None}
+    return {"threshold": chosen.threshold, "recall": round(chosen.recall, 3), "false_pct": round(100 * chosen.false_rate, 1),
+            **recall_by_side(runs, chosen.threshold)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", type=Path)
+    parser.add_argument("--case", action="append", required=True, help="NAME=MODEL:WINDOWS:MIRROR")
+    parser.add_argument("--name", default="detector_passes")
+    args = parser.parse_args()
+    records = []
+    for case in args.case:
+        name, spec = case.split("=", 1)
+        model, windows, mirror = spec.rsplit(":", 2)
+        record = {"case": name, "passes": f"{windows} windows, {mirror}", **measure(args.runs, model, windows, mirror)}
+        print(record, flush=True)
+        records.append(record)
+    columns = {"case": "model", "passes": "passes", "recall": "ripe recall", "false_pct": "false, %", "threshold": "threshold",
+               **{key: f"recall, {key} px" for key in records[0] if key.endswith(("0", "up")) and "-" in key}}
+    save_result(args.name, {"runs": [str(r) for r in args.runs], "max_false_pct": 100 * MAX_FALSE,
+                            "table": as_table(records, columns)})
+
+
+if __name__ == "__main__":
+    main()
