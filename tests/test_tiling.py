@@ -5,7 +5,7 @@ import itertools
 import numpy as np
 import pytest
 
-from renderloop.perception.detector import Detection, Detector
+from renderloop.perception.detector import INPUT_SIZE, Detection, Detector
 from renderloop.errors import UserError
 from renderloop.perception.tiling import cut_by_window, parse_layouts, windows
 
@@ -65,6 +65,7 @@ class ScriptedNetwork(Detector):
 
     def __init__(self, answers: dict[tuple[int, int], list[list[Detection]]]) -> None:
         self.answers = {size: list(replies) for size, replies in answers.items()}
+        self.input_size = INPUT_SIZE  # windows are laid out for a model of the trained input
 
     def _detect_once(self, rgb: np.ndarray, score_threshold: float) -> list[Detection]:
         return [d for d in self.answers[rgb.shape[:2]].pop(0) if d.score >= score_threshold]
@@ -104,6 +105,7 @@ class BrightPatchNetwork(Detector):
 
     def __init__(self) -> None:
         self.passes = 0
+        self.input_size = INPUT_SIZE
 
     def _detect_once(self, rgb: np.ndarray, score_threshold: float) -> list[Detection]:
         self.passes += 1
