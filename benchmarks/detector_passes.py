@@ -19,6 +19,7 @@ from renderloop.config import Config
 from renderloop.perception.detector import Detector
 from renderloop.perception.scoring import findable, match
 from renderloop.perception.threshold import choose, score_thresholds, search_run
+from renderloop.perception.tiling import layout_names, parse_layouts
 
 SIDES = ((20, 30), (30, 50), (50, 100), (100, None))  # px, the shorter side of a fruit's mask box at the frame's size
 MAX_FALSE = 0.05
@@ -42,8 +43,7 @@ def recall_by_side(runs, threshold: float) -> dict[str, float]:
 
 
 def measure(run_dirs: list[Path], model: str, windows: str, mirror: str) -> dict:
-    settings = Config().override({"detector": {"windows": [] if windows == "none" else windows.split(","),
-                                               "mirror": mirror == "mirror"}}).detector
+    settings = Config().override({"detector": {"windows": layout_names(parse_layouts(windows)), "mirror": mirror == "mirror"}}).detector
     detector = Detector(None if model == "shipped" else Path(model), threads=1)
     runs = [search_run(run_dir, detector, settings) for run_dir in run_dirs]
     chosen = choose(score_thresholds(runs), MAX_FALSE)
