@@ -42,6 +42,12 @@ def recall_by_side(runs, threshold: float) -> dict[str, float]:
     return {f"{low}-{high or 'up'}": round(f / t, 3) if t else None for (low, high), f, t in zip(SIDES, found, total)}
 
 
+def passes_label(windows: str, mirror: str) -> str:
+    """'frame, mirror, 2x2 and 3x2 windows': what a case searches each frame with."""
+    layouts = layout_names(parse_layouts(windows))
+    return ", ".join(["frame", *(["mirror"] if mirror == "mirror" else []), *([" and ".join(layouts) + " windows"] if layouts else [])])
+
+
 def measure(run_dirs: list[Path], model: str, windows: str, mirror: str) -> dict:
     settings = Config().override({"detector": {"windows": layout_names(parse_layouts(windows)), "mirror": mirror == "mirror"}}).detector
     detector = Detector(None if model == "shipped" else Path(model), threads=1)
@@ -63,7 +69,7 @@ def main() -> None:
     for case in args.case:
         name, spec = case.split("=", 1)
         model, windows, mirror = spec.rsplit(":", 2)
-        record = {"case": name, "passes": f"{windows} windows, {mirror}", **measure(args.runs, model, windows, mirror)}
+        record = {"case": name, "passes": passes_label(windows, mirror), **measure(args.runs, model, windows, mirror)}
         print(record, flush=True)
         records.append(record)
     columns = {"case": "model", "passes": "passes", "recall": "ripe recall", "false_pct": "false, %", "threshold": "threshold",
