@@ -22,6 +22,7 @@ from renderloop.perception.training.train import TrainSettings, _schedule, train
 from conftest import cli, jittered_model
 
 torchvision = import_torchvision()
+from torchvision.models.detection.image_list import ImageList  # noqa: E402 -- after import_torchvision's fix
 
 
 def test_numpy_nms_equals_torchvision_nms():
@@ -128,6 +129,34 @@ def test_training_checkpoints_resumes_and_exports(tiny_dataset: Path, tmp_path: 
         train_detector(tiny_dataset, out, settings, device="cpu", workers=0, log=lambda _: None, input_size=330)
     with pytest.raises(UserError, match="other settings"):
         train_detector(tiny_dataset, out, TrainSettings(epochs=3, batch_size=4), device="cpu", workers=0, log=lambda _: None)
+
+
+def test_a_network_trained_at_a_larger_input_exports_at_that_size_with_the_same_default_box_sizes(tiny_dataset: Path,
+                                                                                                   tmp_path: Path):
+    out = tmp_path / "m384.onnx"
+    settings = TrainSettings(epochs=1, batch_size=4, warmup_steps=1, max_steps=1, train_size=384, backbone="mobilenet-v3")
+    record = train_detector(tiny_dataset, out, settings, device="cpu", workers=0, log=lambda _: None)
+    assert record["settings"]["train_size"] == 384 and record["input_size"] == 384
+    state = torch.load(out.with_suffix(".ckpt"), weights_only=True)
+    model = build_model("mobilenet-v3", pretrained=False, train_size=384)
+    model.load_state_dict(state["model"])
+    assert model.transform.fixed_size == (384, 384)
+    # the default boxes it trained on are those the exported model decodes from
+    model.eval()
+    rgb = (np.random.default_rng(3).random((480, 640, 3)) * 255).astype(np.uint8)
+    with torch.no_grad():
+        trained = model.anchor_generator(ImageList(torch.zeros(1, 3, 384, 384), [(384, 384)]),
+                                         list(model.backbone(torch.zeros(1, 3, 384, 384)).values()))[0]
+        assert torch.allclose(trained, DecodedSSD(model, 384).anchors)
+        expected = DecodedSSD(model, 384)(torch.from_numpy(to_input(rgb, 384)))
+    detector = Detector(out)
+    assert detector.input_size == 384
+    assert all(np.allclose(got, want.numpy(), atol=1e-3) for got, want in zip(detector.raw(rgb), expected))
+    # the narrowest box is still 0.04 of a 320 px input at a side ratio of 3 (12.8 px / sqrt 3), not of 384 px
+    assert (trained[:, 2:] - trained[:, :2]).min().item() == pytest.approx(0.04 * 320 / 3 ** 0.5, rel=1e-4)
+    with pytest.raises(UserError, match="other settings"):  # a run's training size is part of what it resumes
+        train_detector(tiny_dataset, out, TrainSettings(**{**settings.model_dump(), "train_size": 320}), device="cpu",
+                       workers=0, log=lambda _: None)
 
 
 def test_fine_tuning_starts_from_the_weights_of_a_checkpoint(tiny_dataset: Path, tmp_path: Path):

@@ -31,7 +31,7 @@ from renderloop.config.training import DEVICES as TRAIN_DEVICES
 from renderloop.config.dataset import DatasetSpec
 from renderloop.errors import UserError, did_you_mean
 from renderloop.io.atomic import final_path
-from renderloop.perception.detector import CLASSES, INPUT_SIZE
+from renderloop.perception.detector import CLASSES
 
 # Each command imports the stages it runs inside its own body: `renderloop fly` has no use for the detector,
 # scikit-learn or Ray, and importing them would be a large part of its time.
@@ -304,9 +304,10 @@ def train(
     coco: Annotated[Path | None, typer.Option(help="With --photos: their COCO labels, as `score-photos` reads them.")] = None,
     photo_class: Annotated[str | None, Choice(CLASSES, "With --photos: the class of boxes whose category names no "
                                               "ripeness (a one-class set).")] = None,
-    input_size: Annotated[int, typer.Option(help="Square input of the exported model, px (a multiple of 32): the network "
-                                            "trains at 320; larger shows small fruit larger, at the square of the cost. "
-                                            "Given to a finished run, exports its model again.")] = INPUT_SIZE,
+    train_size: Annotated[int | None, _setting("train_size")] = None,
+    input_size: Annotated[int | None, typer.Option(help="Square input of the exported model, px (a multiple of 32); "
+                                                   "default the size it trains at. Given to a finished run, exports "
+                                                   "its model again.")] = None,
 ) -> None:
     """Train the pepper detector (SSDlite) from ImageNet or --init weights; resumes from its checkpoint; exports ONNX."""
     from renderloop.perception.detector import shipped_model
@@ -323,7 +324,7 @@ def train(
     if backbone is None and init is not None:
         backbone = backbone_of_init(init)
     given = {"epochs": epochs, "batch_size": batch_size, "learning_rate": learning_rate, "warmup_steps": warmup_steps,
-             "seed": seed, "backbone": backbone, "frozen_layers": frozen_layers}
+             "seed": seed, "backbone": backbone, "frozen_layers": frozen_layers, "train_size": train_size}
     settings = checked(TrainSettings, "train", **{name: value for name, value in given.items() if value is not None})
     own = Photos(photos, coco, photo_class) if photos is not None else None
     record = train_detector(dataset_dirs or [], out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True),

@@ -9,13 +9,15 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from renderloop.config.fields import Count, Fraction, Real, Strict
 
 EFFICIENTNET_LITE0, MOBILENET_V3 = "efficientnet-lite0", "mobilenet-v3"
 BACKBONES = (EFFICIENTNET_LITE0, MOBILENET_V3)
 DEFAULT_BACKBONE = EFFICIENTNET_LITE0
+INPUT_SIZE = 320  # px a side: the square input a network trains at unless told, and torchvision's SSDlite's
+INPUT_SIZES = range(160, 1281, 32)  # the square inputs a network trains at or is exported with (its stride is 32)
 DEVICES = ("auto", "cpu", "cuda")  # where `renderloop train` runs; auto: cuda when torch finds one
 
 
@@ -39,5 +41,15 @@ class TrainSettings(Strict):
         6, description="The pretrained backbone's first layers (stem, then blocks) that keep their ImageNet weights and "
         "batch-norm statistics: 6 holds the layers down to stride 8, which trains 2.3 times faster on a CPU and keeps "
         "the low-level features learned on real photos. 0 trains every layer.")
+    train_size: Count(INPUT_SIZES[0], INPUT_SIZES[-1]) = Field(
+        INPUT_SIZE, description="Square input the network trains at, px, a multiple of 32: larger shows small fruit "
+        "larger, at about the square of the cost a step and a pass. Its default boxes keep their sizes in pixels.")
     max_steps: Count(1, 10**9) | None = Field(None, description="Stop after this many steps in all (tests); the schedule "
                                               "still spans the epochs. null: train every epoch.")
+
+    @field_validator("train_size")
+    @classmethod
+    def _multiple_of_stride(cls, size: int) -> int:
+        if size not in INPUT_SIZES:
+            raise ValueError(f"a multiple of {INPUT_SIZES.step} from {INPUT_SIZES[0]} to {INPUT_SIZES[-1]} px, not {size}")
+        return size

@@ -24,14 +24,13 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from renderloop.config.training import INPUT_SIZE, INPUT_SIZES
 from renderloop.errors import UserError
 from renderloop.perception.boxes import nms
 from renderloop.perception.fusion import fuse
 from renderloop.perception.tiling import Layout, all_windows, cut_by_window
 
 CLASSES = ("ripe", "unripe")
-INPUT_SIZE = 320  # px a side: what the network trains at, and the input of a model exported without a size
-INPUT_SIZES = range(160, 1281, 32)  # the square inputs a model may be exported with (the network's stride is 32)
 NMS_IOU = 0.55
 TOPK_CANDIDATES = 300
 MAX_DETECTIONS = 300

@@ -1,6 +1,6 @@
 """The detector network and its ONNX form.
 
-torchvision's SSDlite (320x320) over one of the backbones of
+torchvision's SSDlite (320x320, or the `train_size` of the run) over one of the backbones of
 `renderloop.perception.training.backbones`, classes background, ripe, unripe. The ONNX graph holds the network
 and the box decoding, not the per-class filtering and NMS: those run in numpy
 after ONNX Runtime (`renderloop.perception.detector`), the same code for every
@@ -8,8 +8,8 @@ backend, so the exported file has no data-dependent shapes and its outputs can b
 compared with torch's number for number.
 
 ONNX contract: input `images` float32 (1, 3, S, S) RGB in [0, 1] (the frame
-resized to the input, aspect not kept, as torchvision's SSD transform does; S is 320, the
-size the network trains at, unless the model was exported with another);
+resized to the input, aspect not kept, as torchvision's SSD transform does; S is the size
+the network trained at, unless the model was exported with another);
 outputs `boxes` (A, 4) x0 y0 x1 y1 in pixels of the input, and `scores`
 (A, 3) softmax class probabilities, background first.
 """
@@ -21,7 +21,8 @@ from pathlib import Path
 import torch
 from torch import nn
 
-from renderloop.perception.detector import CLASSES, INPUT_SIZE
+from renderloop.config.training import INPUT_SIZE
+from renderloop.perception.detector import CLASSES
 from renderloop.perception.training.torch_support import import_torchvision
 
 torchvision = import_torchvision()
@@ -31,6 +32,7 @@ from torchvision.models.detection.anchor_utils import DefaultBoxGenerator
 from torchvision.models.detection.image_list import ImageList
 from torchvision.models.detection.ssd import SSD
 from torchvision.models.detection.ssdlite import SSDLiteHead
+from torchvision.models.detection.transform import GeneralizedRCNNTransform
 
 from renderloop.config.training import BACKBONES, DEFAULT_BACKBONE, MOBILENET_V3
 from renderloop.perception.training.backbones import NORM, lite0_extractor
@@ -50,20 +52,29 @@ SSD_SETTINGS = {"score_thresh": 0.001, "nms_thresh": 0.55, "detections_per_img":
                 "image_mean": [0.5, 0.5, 0.5], "image_std": [0.5, 0.5, 0.5]}
 
 
-def build_model(backbone: str = DEFAULT_BACKBONE, pretrained: bool = True) -> nn.Module:
-    """The detector over `backbone`; `pretrained` loads the backbone's ImageNet weights where it has them (weights
-    loaded afterwards, from a checkpoint or an ONNX model, make it moot)."""
-    anchors = DefaultBoxGenerator([[2, 3] for _ in range(6)], scales=ANCHOR_SCALES)
+def default_boxes(input_size: int) -> DefaultBoxGenerator:
+    """The default boxes over an `input_size` square input: the same sizes in pixels at any input (ANCHOR_SCALES of a
+    320 px one) on a grid that grows with it, so that a network trained at one size and run at another, or
+    fine-tuned at another, regresses from boxes of the sizes it learned from, on features of fruit of so many
+    pixels. Boxes that grew with the input would come out scaled by its growth."""
+    return DefaultBoxGenerator([[2, 3] for _ in range(6)], scales=[s * INPUT_SIZE / input_size for s in ANCHOR_SCALES])
+
+
+def build_model(backbone: str = DEFAULT_BACKBONE, pretrained: bool = True, train_size: int = INPUT_SIZE) -> nn.Module:
+    """The detector over `backbone`, training at a `train_size` square input; `pretrained` loads the backbone's
+    ImageNet weights where it has them (weights loaded afterwards, from a checkpoint or an ONNX model, make it moot).
+    Its weights are those of any size: only the input transform and the grid of default boxes depend on it."""
+    anchors, size = default_boxes(train_size), (train_size, train_size)
     if backbone == MOBILENET_V3:
         model = ssdlite320_mobilenet_v3_large(weights=None, weights_backbone=None, num_classes=len(CLASSES) + 1)
         model.anchor_generator = anchors
-        model.renderloop_backbone = backbone
-        return model
-    extractor = lite0_extractor(pretrained)
-    size = (INPUT_SIZE, INPUT_SIZE)
-    channels = det_utils.retrieve_out_channels(extractor, size)
-    head = SSDLiteHead(channels, anchors.num_anchors_per_location(), len(CLASSES) + 1, NORM)
-    model = SSD(extractor, anchors, size, len(CLASSES) + 1, head=head, **SSD_SETTINGS)
+        model.transform = GeneralizedRCNNTransform(train_size, train_size, SSD_SETTINGS["image_mean"],
+                                                   SSD_SETTINGS["image_std"], size_divisible=1, fixed_size=size)
+    else:
+        extractor = lite0_extractor(pretrained)
+        channels = det_utils.retrieve_out_channels(extractor, size)
+        head = SSDLiteHead(channels, anchors.num_anchors_per_location(), len(CLASSES) + 1, NORM)
+        model = SSD(extractor, anchors, size, len(CLASSES) + 1, head=head, **SSD_SETTINGS)
     model.renderloop_backbone = backbone  # what the exported model's metadata names
     return model
 
@@ -79,12 +90,8 @@ def backbone_of(name: str) -> str | None:
 
 
 class DecodedSSD(nn.Module):
-    """Network plus box decoding for one image already at the `input_size` square input (the ONNX graph).
-
-    At an input larger than the one it trained at, the network's feature maps grow and so
-    does the grid of default boxes, but each box keeps its size in pixels: the head learned
-    to regress from boxes of those sizes on features of a fruit of so many pixels. Default
-    boxes that grew with the input would come out scaled by the input's growth."""
+    """Network plus box decoding for one image already at the `input_size` square input (the ONNX graph), whatever
+    size it trained at: its default boxes keep their sizes in pixels (`default_boxes`)."""
 
     def __init__(self, model: nn.Module, input_size: int = INPUT_SIZE) -> None:
         super().__init__()
@@ -92,9 +99,7 @@ class DecodedSSD(nn.Module):
         transform = model.transform
         self.register_buffer("mean", torch.tensor(transform.image_mean).view(1, 3, 1, 1))
         self.register_buffer("std", torch.tensor(transform.image_std).view(1, 3, 1, 1))
-        generator = model.anchor_generator
-        if input_size != INPUT_SIZE:
-            generator = DefaultBoxGenerator(generator.aspect_ratios, scales=[s * INPUT_SIZE / input_size for s in generator.scales])
+        generator = default_boxes(input_size)
         with torch.no_grad():
             dummy = torch.zeros(1, 3, input_size, input_size)
             features = list(model.backbone(dummy).values())

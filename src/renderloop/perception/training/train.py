@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from renderloop.config.training import MOBILENET_V3, TrainSettings
+from renderloop.config.training import INPUT_SIZES, MOBILENET_V3, TrainSettings
 from renderloop.errors import UserError
 from renderloop.io.atomic import atomic_path, write_json
-from renderloop.perception.detector import CLASSES, INPUT_SIZE, INPUT_SIZES
+from renderloop.perception.detector import CLASSES
 from renderloop.perception.training.backbones import frozen_layers
 from renderloop.perception.training.data import PepperBoxes, PhotoBoxes, collate
 from renderloop.perception.training.from_onnx import freeze_batch_norms, onnx_metadata, weights_from_onnx
@@ -139,17 +139,18 @@ class Photos:
 
 def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettings, device: str = "auto", workers: int = 1,
                    log: Log = print, init: Path | None = None, photos: Photos | None = None,
-                   input_size: int = INPUT_SIZE) -> dict:
+                   input_size: int | None = None) -> dict:
     """Train on the train splits of one or more datasets together, and on `photos` if given; each dataset's val split
     is scored apart (figures of sets of different difficulty would not mean anything mixed), the first's as the
     headline figures. Photos have no validation split: score the model on photos it did not train on with
-    `renderloop score-photos`. The network trains at 320 px and is exported for an `input_size` square input; a
-    finished run given another size exports its model again."""
+    `renderloop score-photos`. The network trains at `settings.train_size` and is exported for an `input_size`
+    square input (None: the size it trained at); a finished run given another size exports its model again."""
     datasets, out = [Path(d) for d in (datasets if isinstance(datasets, list) else [datasets])], Path(out)
     if not datasets and photos is None:
         raise UserError("give a dataset folder made by `renderloop dataset`, or --photos with --coco, to train on")
     if out.suffix != ".onnx":
         raise UserError(f"--out {out}: the model file must end in .onnx")
+    input_size = settings.train_size if input_size is None else input_size
     if input_size not in INPUT_SIZES:
         raise UserError(f"--input-size {input_size}: give a multiple of 32 from {INPUT_SIZES[0]} to {INPUT_SIZES[-1]} px")
     checkpoint_path = out.with_suffix(".ckpt")
@@ -173,7 +174,7 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
         collate_fn=collate, num_workers=workers, persistent_workers=workers > 0,
         generator=torch.Generator().manual_seed(settings.seed),
     )
-    model = build_model(settings.backbone, pretrained=init is None)
+    model = build_model(settings.backbone, pretrained=init is None, train_size=settings.train_size)
     frozen_norms = init is not None and Path(init).suffix == ".onnx"  # its batch norms are folded: keep them as they are
     if init is not None:
         model.load_state_dict(_initial_weights(Path(init), model, settings.backbone))
