@@ -88,23 +88,22 @@ def torch_and_onnx_ms(frame: np.ndarray, repeats: int) -> tuple[list[float], lis
     return torch_ms, timed(lambda: onnx.detect(frame, 0.5), repeats)
 
 
-EXPORT_SIZES = (320, 384, 416, 448)  # square inputs the pretrained backbone's detector is timed at
+EXPORT_SIZES = (320, 384, 448, 512)  # square inputs each backbone's detector is timed at
 
 
 def backbone_pass_ms(frame: np.ndarray, repeats: int) -> dict[str, dict]:
-    """One pass of the whole frame through each backbone's detector (random weights: speed does not depend on them)
-    with ONNX Runtime on one core, side by side; the default backbone's at each of EXPORT_SIZES."""
+    """One pass of the whole frame through each backbone's detector at each of EXPORT_SIZES (random weights: speed
+    does not depend on them) with ONNX Runtime on one core, side by side."""
     import tempfile
     from pathlib import Path
 
-    from renderloop.config.training import BACKBONES, DEFAULT_BACKBONE
-    from renderloop.perception.detector import INPUT_SIZE
+    from renderloop.config.training import BACKBONES
     from renderloop.perception.training.ssd import build_model, export_onnx
 
     figures = {}
     for backbone in BACKBONES:
         model = build_model(backbone, pretrained=False).eval()
-        for size in EXPORT_SIZES if backbone == DEFAULT_BACKBONE else (INPUT_SIZE,):
+        for size in EXPORT_SIZES:
             with tempfile.TemporaryDirectory() as folder:
                 path = Path(folder) / f"{backbone}.onnx"
                 export_onnx(model, path, input_size=size)
