@@ -54,8 +54,9 @@ def commit() -> str:
 
 
 def as_table(records: list[dict], columns: dict[str, str]) -> dict:
-    """Measured records (one dict a case) as the table the docs show: `columns` maps a record's key to its heading."""
-    return {"columns": list(columns.values()), "rows": [[record[key] for key in columns] for record in records]}
+    """Measured records (one dict a case) as the table the docs show: `columns` maps a record's key to its heading; a
+    record without a key (a case that gave no figure) shows null there."""
+    return {"columns": list(columns.values()), "rows": [[record.get(key) for key in columns] for record in records]}
 
 
 def save_result(name: str, figures: dict, command: str | None = None) -> Path:

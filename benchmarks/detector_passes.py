@@ -1,6 +1,7 @@
 """Detector models and passes side by side on rendered runs the models never trained on: for each case, the
 recall of the findable ripe fruit at the lowest threshold with at most 5 % false detections (`renderloop
-threshold`'s rule), and that recall by the fruit's shorter side in pixels, where small fruit show.
+threshold`'s rule), that recall by the fruit's shorter side in pixels, where small fruit show, and the recall of
+the findable green fruit at that threshold.
 
     .venv/bin/python benchmarks/detector_passes.py RUN... --case NAME=MODEL:WINDOWS:MIRROR ... [--name NAME]
 
@@ -22,24 +23,27 @@ from renderloop.perception.threshold import choose, score_thresholds, search_run
 from renderloop.perception.tiling import layout_names, parse_layouts
 
 SIDES = ((20, 30), (30, 50), (50, 100), (100, None))  # px, the shorter side of a fruit's mask box at the frame's size
+BINS = [f"{low}-{high or 'up'}" for low, high in SIDES]
 MAX_FALSE = 0.05
 
 
 def recall_by_side(runs, threshold: float) -> dict[str, float]:
-    found, total = [0] * len(SIDES), [0] * len(SIDES)
+    """Recall of the findable ripe fruit in each bin of SIDES, and of the findable green fruit (`unripe`; None where
+    the runs hold none), at `threshold`; a box of either class finds a fruit, as `renderloop threshold` scores."""
+    found, total = [0] * (len(SIDES) + 1), [0] * (len(SIDES) + 1)  # the last: green fruit
     for run in runs:
         ripe = {p.id: p.ripe for p in run.scene.peppers}
         for detections, truth in run.frames:
             hits = set(match([d for d in detections if d["score"] >= threshold], truth.peppers).values())
             for pepper, box in truth.peppers.items():
-                if not (ripe[pepper] and findable(box)):
+                if not findable(box):
                     continue
                 side = min(box[2] - box[0], box[3] - box[1])
-                for k, (low, high) in enumerate(SIDES):
+                for k, (low, high) in enumerate(SIDES) if ripe[pepper] else [(len(SIDES), (0, None))]:
                     if low <= side and (high is None or side < high):
                         found[k] += pepper in hits
                         total[k] += 1
-    return {f"{low}-{high or 'up'}": round(f / t, 3) if t else None for (low, high), f, t in zip(SIDES, found, total)}
+    return {name: round(f / t, 3) if t else None for name, f, t in zip([*BINS, "unripe"], found, total)}
 
 
 def passes_label(windows: str, mirror: str) -> str:
@@ -73,7 +77,7 @@ def main() -> None:
         print(record, flush=True)
         records.append(record)
     columns = {"case": "model", "passes": "passes", "recall": "ripe recall", "false_pct": "false, %", "threshold": "threshold",
-               **{key: f"recall, {key} px" for key in records[0] if key.endswith(("0", "up")) and "-" in key}}
+               **{name: f"recall, {name} px" for name in BINS}, "unripe": "green recall"}
     save_result(args.name, {"runs": [str(r) for r in args.runs], "max_false_pct": 100 * MAX_FALSE,
                             "table": as_table(records, columns)})
 
