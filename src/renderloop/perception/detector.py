@@ -4,9 +4,9 @@ Post-processing mirrors torchvision's SSD (`postprocess_detections`): per class,
 scores above a floor, the top 300 candidates, class-wise NMS at IoU 0.55, at most
 300 detections; then the caller's score threshold. Frames of any size are resized
 to the network input with PIL's antialiased bilinear filter (a 640x480 frame then
-looks like the 320 px renders the network was trained on) and boxes are scaled back. A model
-may be exported with a larger square input than the 320 px it trained at (`training.ssd`): the
-frame then reaches it less shrunk, and its default boxes keep the pixel sizes it learned.
+looks like the renders the network was trained on at that input) and boxes are scaled back.
+The input is square, 320 px unless the network trained at a larger one or was exported for
+another (`training.ssd`); the detector reads it from the model file.
 With window `layouts` the frame's overlapping windows are searched as well (`tiling`), with
 `mirror` the frame mirrored left to right (a second look at the same pixels that errs
 elsewhere: the network is not exactly symmetric), and what the passes found is merged

@@ -54,9 +54,10 @@ SSD_SETTINGS = {"score_thresh": 0.001, "nms_thresh": 0.55, "detections_per_img":
 
 def default_boxes(input_size: int) -> DefaultBoxGenerator:
     """The default boxes over an `input_size` square input: the same sizes in pixels at any input (ANCHOR_SCALES of a
-    320 px one) on a grid that grows with it, so that a network trained at one size and run at another, or
-    fine-tuned at another, regresses from boxes of the sizes it learned from, on features of fruit of so many
-    pixels. Boxes that grew with the input would come out scaled by its growth."""
+    320 px one) on a grid that grows with it, so that a network fine-tuned or run at another size than it trained
+    at regresses from boxes of the sizes it learned from, on features of fruit of so many pixels; boxes that grew
+    with the input would come out scaled by its growth. Run at another size, a network still loses much of its
+    recall (the model card's steps 18 and 20): train at the size it will run at."""
     return DefaultBoxGenerator([[2, 3] for _ in range(6)], scales=[s * INPUT_SIZE / input_size for s in ANCHOR_SCALES])
 
 
