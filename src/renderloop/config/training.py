@@ -18,6 +18,7 @@ BACKBONES = (EFFICIENTNET_LITE0, MOBILENET_V3)
 DEFAULT_BACKBONE = EFFICIENTNET_LITE0
 INPUT_SIZE = 320  # px a side: the square input a network trains at unless told, and torchvision's SSDlite's
 INPUT_SIZES = range(160, 1281, 32)  # the square inputs a network trains at or is exported with (its stride is 32)
+SIZE_RULE = f"a multiple of {INPUT_SIZES.step} from {INPUT_SIZES[0]} to {INPUT_SIZES[-1]} px"  # what a bad size is told
 DEVICES = ("auto", "cpu", "cuda")  # where `renderloop train` runs; auto: cuda when torch finds one
 
 
@@ -51,5 +52,5 @@ class TrainSettings(Strict):
     @classmethod
     def _multiple_of_stride(cls, size: int) -> int:
         if size not in INPUT_SIZES:
-            raise ValueError(f"a multiple of {INPUT_SIZES.step} from {INPUT_SIZES[0]} to {INPUT_SIZES[-1]} px, not {size}")
+            raise ValueError(f"{SIZE_RULE}, not {size}")
         return size

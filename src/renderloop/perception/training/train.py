@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from renderloop.config.training import INPUT_SIZES, MOBILENET_V3, TrainSettings
+from renderloop.config.training import INPUT_SIZES, MOBILENET_V3, SIZE_RULE, TrainSettings
 from renderloop.errors import UserError
 from renderloop.io.atomic import atomic_path, write_json
 from renderloop.perception.detector import CLASSES
@@ -152,7 +152,7 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
         raise UserError(f"--out {out}: the model file must end in .onnx")
     input_size = settings.train_size if input_size is None else input_size
     if input_size not in INPUT_SIZES:
-        raise UserError(f"--input-size {input_size}: give a multiple of 32 from {INPUT_SIZES[0]} to {INPUT_SIZES[-1]} px")
+        raise UserError(f"--input-size {input_size}: give {SIZE_RULE}")
     checkpoint_path = out.with_suffix(".ckpt")
     if not checkpoint_path.is_file():  # a resumed run's files are its own; without a checkpoint, nothing here is ours
         for path in (out, out.with_suffix(".json")):
