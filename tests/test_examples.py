@@ -71,5 +71,4 @@ def test_a_script_without_a_main_guard_renders_with_cycles_workers(tmp_path):
     (tmp_path / "script.py").write_text(UNGUARDED, encoding="utf-8")
     result = run_python(["script.py"], tmp_path)
     assert result.returncode == 0, result.stderr[-3000:]
-    # Cycles' workers may print a CUDA-loader warning to stdout after the script's own line: read the script's line
-    assert int([line for line in result.stdout.splitlines() if line.strip().isdigit()][-1]) >= 3
+    assert int(result.stdout) >= 3  # the script's one line: its workers print to stderr

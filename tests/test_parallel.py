@@ -5,6 +5,7 @@ spawned process or a Ray worker imports them without this test module."""
 
 from __future__ import annotations
 
+import os
 import re
 
 import pytest
@@ -24,6 +25,12 @@ def test_an_ordered_map_on_two_processes_is_the_serial_map_and_unordered_the_sam
     assert serial == [2**i for i in range(7)]
     assert list(map_tasks(TWO, pow, calls, ordered=True)) == serial
     assert sorted(map_tasks(TWO, pow, calls)) == serial
+
+
+def test_what_a_spawned_worker_prints_from_native_code_goes_to_stderr_not_into_the_callers_stdout(capfd):
+    assert list(map_tasks(TWO, os.write, [(1, b"worker line\n")] * 3)) == [12] * 3  # os.write: bytes written to fd 1
+    out, err = capfd.readouterr()
+    assert "worker line" not in out and err.count("worker line") == 3
 
 
 def test_a_task_user_error_on_a_process_comes_back_as_its_one_line():

@@ -148,11 +148,22 @@ def spawn_safely() -> Iterator[None]:
 def _processes(workers: int, initializer: Callable[..., None] | None = None,
                initargs: tuple = ()) -> Iterator[ProcessPoolExecutor]:
     # spawn, not fork: neither Blender nor an OpenGL context survives a fork
-    pool = ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=initializer, initargs=initargs)
+    pool = ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_started,
+                               initargs=(initializer, initargs))
     try:
         yield pool
     finally:
         pool.shutdown(cancel_futures=True)  # a caller that stops early drops the work not started
+
+
+def _started(initializer: Callable[..., None] | None, initargs: tuple) -> None:
+    """A spawned worker's standard output points at its standard error: its results come back through the pool,
+    and what a library prints from native code (Cycles' CUDA-loader warning when it loads) must not land in the
+    output a caller reads from the program's stdout."""
+    sys.stdout.flush()
+    os.dup2(2, 1)
+    if initializer is not None:
+        initializer(*initargs)
 
 
 def _finished(futures: list[Future], ordered: bool) -> Iterator[Any]:
