@@ -3,9 +3,10 @@ recall of the findable ripe fruit at the lowest threshold with at most 5 % false
 threshold`'s rule), that recall by the fruit's shorter side in pixels, where small fruit show, and the recall of
 the findable green fruit at that threshold.
 
-    .venv/bin/python benchmarks/detector_passes.py RUN... --case NAME=MODEL:WINDOWS:MIRROR ... [--name NAME]
+    .venv/bin/python benchmarks/detector_passes.py RUN... --case NAME=MODEL:WINDOWS:MIRROR[:MIN_BOX] ... [--name NAME]
 
-WINDOWS is `2x2,3x2` or `none`, MIRROR `mirror` or `none`; MODEL `shipped` or an ONNX file. Writes
+WINDOWS is `2x2,3x2` or `none`, MIRROR `mirror` or `none`, MIN_BOX the shorter side in px a box needs
+(`detector.min_box_px`, default 0); MODEL `shipped` or an ONNX file. Writes
 `benchmarks/results/NAME.json` (default detector_passes) with a row a case.
 """
 
@@ -46,14 +47,16 @@ def recall_by_side(runs, threshold: float) -> dict[str, float]:
     return {name: round(f / t, 3) if t else None for name, f, t in zip([*BINS, "unripe"], found, total)}
 
 
-def passes_label(windows: str, mirror: str) -> str:
-    """'frame, mirror, 2x2 and 3x2 windows': what a case searches each frame with."""
+def passes_label(windows: str, mirror: str, min_box: float) -> str:
+    """'frame, mirror, 2x2 and 3x2 windows[, boxes of 10 px and up]': what a case searches each frame with."""
     layouts = layout_names(parse_layouts(windows))
-    return ", ".join(["frame", *(["mirror"] if mirror == "mirror" else []), *([" and ".join(layouts) + " windows"] if layouts else [])])
+    return ", ".join(["frame", *(["mirror"] if mirror == "mirror" else []), *([" and ".join(layouts) + " windows"] if layouts else []),
+                      *([f"boxes of {min_box:g} px and up"] if min_box else [])])
 
 
-def measure(run_dirs: list[Path], model: str, windows: str, mirror: str) -> dict:
-    settings = Config().override({"detector": {"windows": layout_names(parse_layouts(windows)), "mirror": mirror == "mirror"}}).detector
+def measure(run_dirs: list[Path], model: str, windows: str, mirror: str, min_box: float) -> dict:
+    settings = Config().override({"detector": {"windows": layout_names(parse_layouts(windows)), "mirror": mirror == "mirror",
+                                               "min_box_px": min_box}}).detector
     detector = Detector(None if model == "shipped" else Path(model), threads=1)
     runs = [search_run(run_dir, detector, settings) for run_dir in run_dirs]
     chosen = choose(score_thresholds(runs), MAX_FALSE)
@@ -66,14 +69,15 @@ def measure(run_dirs: list[Path], model: str, windows: str, mirror: str) -> dict
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", type=Path)
-    parser.add_argument("--case", action="append", required=True, help="NAME=MODEL:WINDOWS:MIRROR")
+    parser.add_argument("--case", action="append", required=True, help="NAME=MODEL:WINDOWS:MIRROR[:MIN_BOX]")
     parser.add_argument("--name", default="detector_passes")
     args = parser.parse_args()
     records = []
     for case in args.case:
         name, spec = case.split("=", 1)
-        model, windows, mirror = spec.rsplit(":", 2)
-        record = {"case": name, "passes": passes_label(windows, mirror), **measure(args.runs, model, windows, mirror)}
+        model, windows, mirror, *rest = spec.split(":")
+        min_box = float(rest[0]) if rest else 0.0
+        record = {"case": name, "passes": passes_label(windows, mirror, min_box), **measure(args.runs, model, windows, mirror, min_box)}
         print(record, flush=True)
         records.append(record)
     columns = {"case": "model", "passes": "passes", "recall": "ripe recall", "false_pct": "false, %", "threshold": "threshold",

@@ -244,6 +244,18 @@ def test_a_model_that_keeps_the_onnx_contract_loads_and_detects(tmp_path: Path):
     assert found.label == "ripe" and found.bbox == pytest.approx((10.0, 7.5, 50.0, 45.0))
 
 
+@pytest.mark.parametrize("mirror", [False, True], ids=["one pass", "passes fused"])
+def test_a_box_narrower_than_min_box_px_is_dropped_and_every_other_box_is_kept(tmp_path: Path, mirror: bool):
+    boxes = np.array([[10.0, 10.0, 50.0, 60.0], [100.0, 100.0, 108.0, 140.0]], np.float32)  # the second 8 px wide
+    scores = np.array([[0.2, 0.7, 0.1], [0.2, 0.1, 0.7]], np.float32)
+    detector = Detector(_fake_detector(tmp_path / "fake.onnx", boxes, scores))
+    frame = np.zeros((240, 320, 3), np.uint8)
+    every = detector.detect(frame, 0.5, mirror=mirror)
+    kept = detector.detect(frame, 0.5, mirror=mirror, min_side=10.0)
+    assert {d.label for d in every} == {"ripe", "unripe"} and {d.label for d in kept} == {"ripe"}
+    assert kept == [d for d in every if min(d.bbox[2] - d.bbox[0], d.bbox[3] - d.bbox[1]) >= 10.0]
+
+
 @pytest.mark.parametrize(("boxes", "scores", "input_type", "problem"), [
     (BOXES, SCORES[:, :2], onnx.TensorProto.FLOAT, r"output scores has 2 columns, not 3 \(background, ripe, unripe\)"),
     (np.full((5, 4), np.nan, np.float32), SCORES, onnx.TensorProto.FLOAT, "outputs hold NaN or infinite values"),

@@ -32,6 +32,10 @@ class DetectorConfig(Strict):
         "where small fruit look larger (one network pass a window; perception/tiling.py); []: the whole frame only.")
     mirror: bool = Field(True, description="Also search the frame mirrored left to right, the passes fused: one more "
                          "network pass, for recall at the same rate of false detections (docs/stages/perception.md).")
+    min_box_px: Real(0.0, 10_000.0) = Field(
+        0.0, description="Shorter side a detection's box needs, px of the frame; 0 keeps every box. A box under 10 px "
+        "cannot match a findable fruit (20 px or more a side, perception/scoring.py) at IoU 0.5, so what it holds is "
+        "smaller fruit or no fruit (docs/stages/perception.md).")
 
     @property
     def layouts(self) -> list[Layout]:

@@ -81,6 +81,10 @@ def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, 
             for k in keep]
 
 
+def _shorter_side(box: tuple[float, float, float, float]) -> float:
+    return min(box[2] - box[0], box[3] - box[1])
+
+
 def contract_breach(boxes: np.ndarray, scores: np.ndarray) -> str | None:
     """What is wrong with a network's outputs on a frame, None when they keep the contract: boxes (A, 4) and scores
     (A, 1 + classes) probabilities, background first, both float32 and finite."""
@@ -154,10 +158,11 @@ class Detector:
         boxes, scores = self.session.run(None, {"images": to_input(rgb, self.input_size)})
         return boxes, scores
 
-    def detect(self, rgb: np.ndarray, score_threshold: float, layouts: Sequence[Layout] = (), mirror: bool = False
-               ) -> list[Detection]:
+    def detect(self, rgb: np.ndarray, score_threshold: float, layouts: Sequence[Layout] = (), mirror: bool = False,
+               min_side: float = 0.0) -> list[Detection]:
         """Detections in the whole frame, with `mirror` in the frame mirrored left to right too, and in the
-        overlapping windows of each (columns, rows) layout; the passes merged."""
+        overlapping windows of each (columns, rows) layout; the passes merged; boxes whose shorter side is under
+        `min_side` px dropped."""
         if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
             raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
         height, width = rgb.shape[:2]
@@ -165,7 +170,7 @@ class Detector:
         passes = [(whole, False), *([(whole, True)] if mirror else []),
                   *((window, False) for window in all_windows(width, height, layouts, self.input_size))]
         if len(passes) == 1:
-            return self._detect_once(rgb, score_threshold)
+            return [d for d in self._detect_once(rgb, score_threshold) if _shorter_side(d.bbox) >= min_side]
         floor = min(PASS_FLOOR, score_threshold)
         found = []
         for number, ((x0, y0, x1, y1), mirrored) in enumerate(passes):
@@ -181,8 +186,8 @@ class Detector:
             return []
         leaders, scores = fuse(np.array([d.bbox for _, d in found]), np.array([d.score for _, d in found]),
                                np.array([number for number, _ in found]))
-        return [Detection(found[k][1].bbox, float(score), found[k][1].label)
-                for k, score in zip(leaders, scores, strict=True) if score >= score_threshold][:MAX_DETECTIONS]
+        return [Detection(found[k][1].bbox, float(score), found[k][1].label) for k, score in zip(leaders, scores, strict=True)
+                if score >= score_threshold and _shorter_side(found[k][1].bbox) >= min_side][:MAX_DETECTIONS]
 
     def _detect_once(self, rgb: np.ndarray, score_threshold: float) -> list[Detection]:
         boxes, scores = self.raw(rgb)
