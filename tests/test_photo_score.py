@@ -35,9 +35,10 @@ def fake_network(monkeypatch) -> list[tuple[float, list, bool]]:
     """Detector.detect answers FOUND for the photo whose first pixel holds its id; the calls are recorded."""
     calls = []
 
-    def detect(self, rgb, score_threshold, layouts=(), mirror=False):
+    def detect(self, rgb, score_threshold, layouts=(), mirror=False, min_side=0.0):
         calls.append((score_threshold, list(layouts), mirror))
-        return [d for d in FOUND[int(rgb[0, 0, 0])] if d.score >= score_threshold]
+        return [d for d in FOUND[int(rgb[0, 0, 0])]
+                if d.score >= score_threshold and min(d.bbox[2] - d.bbox[0], d.bbox[3] - d.bbox[1]) >= min_side]
 
     monkeypatch.setattr(Detector, "detect", detect)
     return calls
