@@ -31,12 +31,12 @@ FOUND = {
 
 
 @pytest.fixture
-def fake_network(monkeypatch) -> list[tuple[float, list, bool]]:
+def fake_network(monkeypatch) -> list[tuple[float, list, bool, float]]:
     """Detector.detect answers FOUND for the photo whose first pixel holds its id; the calls are recorded."""
     calls = []
 
     def detect(self, rgb, score_threshold, layouts=(), mirror=False, min_side=0.0):
-        calls.append((score_threshold, list(layouts), mirror))
+        calls.append((score_threshold, list(layouts), mirror, min_side))
         return [d for d in FOUND[int(rgb[0, 0, 0])]
                 if d.score >= score_threshold and min(d.bbox[2] - d.bbox[0], d.bbox[3] - d.bbox[1]) >= min_side]
 
@@ -149,9 +149,9 @@ def test_ripeness_categories_give_per_class_scores_and_the_options_reach_the_sea
     labels.write_text(json.dumps(coco(["Red", "green"], {1: [1, 2], 2: [2], 3: []})))  # A1 ripe, A2 and B1 unripe
     out = tmp_path / "score"
     code, stdout, stderr = cli(monkeypatch, capsys, "score-photos", str(folder), "--coco", str(labels), "--out", str(out),
-                               "--threshold", "0.05", "--windows", "none", "--no-mirror")
+                               "--threshold", "0.05", "--windows", "none", "--no-mirror", "--min-box", "4")
     assert code == 0, stderr
-    assert fake_network == [(0.05, [], False)] * 3  # a threshold under the floor is searched down to itself
+    assert fake_network == [(0.05, [], False, 4.0)] * 3  # a threshold under the floor is searched down to itself
     record = PhotoScore.model_validate_json((out / "score.json").read_text())
     assert record.search_floor == 0.05 and record.windows == [] and not record.mirror
     ripe, unripe = record.by_class["ripe"], record.by_class["unripe"]

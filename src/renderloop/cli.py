@@ -120,6 +120,8 @@ Windows = Annotated[str | None, typer.Option(help="Also search the windows of th
                                              "e.g. 2x2,3x2; none: whole images only; default: the config's (2x2,3x2).")]
 Mirror = Annotated[bool | None, typer.Option("--mirror/--no-mirror", help="Also search each image mirrored; default: the config's.",
                                              show_default=False)]
+MinBox = Annotated[float | None, typer.Option("--min-box", min=0.0, help="Shorter side in px a detection's box needs; "
+                                              "default: the config's (0: every box).")]
 
 
 def _version(value: bool) -> None:
@@ -333,12 +335,13 @@ def train(
     typer.echo(f"train: wrote {out} (val mAP@0.5 {last.get('map50', float('nan')):.3f})")
 
 
-def _detector_options(model: Path | None, threshold: float | None, windows: str | None, mirror: bool | None) -> dict:
-    """The detector settings given of `--model`, `--threshold`, `--windows` and `--mirror`, as config fields."""
+def _detector_options(model: Path | None, threshold: float | None, windows: str | None, mirror: bool | None,
+                      min_box: float | None) -> dict:
+    """The detector settings given of `--model`, `--threshold`, `--windows`, `--mirror` and `--min-box`, as config fields."""
     from renderloop.perception.tiling import layout_names, parse_layouts
 
     given = {"model": model, "score_threshold": threshold, "windows": None if windows is None else layout_names(parse_layouts(windows)),
-             "mirror": mirror}
+             "mirror": mirror, "min_box_px": min_box}
     return {name: value for name, value in given.items() if value is not None}
 
 
@@ -357,6 +360,7 @@ def detect(
     threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help=THRESHOLD_HELP)] = None,
     windows: Windows = None,
     mirror: Mirror = None,
+    min_box: MinBox = None,
     force: Force = False,
 ) -> None:
     """Detect peppers: detections.json (boxes, scores, ripe/unripe, 3D world points) of a run, or of a photo folder."""
@@ -366,7 +370,7 @@ def detect(
 
     if (run_dir is None) == (images is None):
         raise UserError("give either a run directory or --images FOLDER --out FILE.json")
-    given = _detector_options(model, threshold, windows, mirror)
+    given = _detector_options(model, threshold, windows, mirror, min_box)
     if images is not None:
         if out is None:
             raise UserError("--images needs --out FILE.json")
@@ -386,13 +390,14 @@ def choose_threshold(
     model: Annotated[Path | None, typer.Option(help="ONNX model; default: the shipped one.")] = None,
     windows: Windows = None,
     mirror: Mirror = None,
+    min_box: MinBox = None,
     max_false: Annotated[float, typer.Option(min=0.0, max=1.0, help="Share of false detections allowed.")] = 0.05,
 ) -> None:
     """Choose the detector's score threshold on rendered runs: the lowest with at most --max-false of its detections false."""
     from renderloop.perception.detector import Detector
     from renderloop.perception.threshold import choose, format_scores, score_thresholds, search_run
 
-    settings = _photo_detector(_detector_options(model, None, windows, mirror))
+    settings = _photo_detector(_detector_options(model, None, windows, mirror, min_box))
     detector = Detector(settings.model)
     with _progress_bar("threshold") as progress:
         runs = [search_run(run_dir, detector, settings, progress) for run_dir in run_dirs]
@@ -493,13 +498,14 @@ def score_photo_folder(
     threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help=THRESHOLD_HELP)] = None,
     windows: Windows = None,
     mirror: Mirror = None,
+    min_box: MinBox = None,
     force: Annotated[bool, typer.Option("--force", help="Replace a score that exists in --out.")] = False,
 ) -> None:
     """Score the detector on your labelled photos: recall, precision, F1, AP@0.5 (pycocotools) and the curve over thresholds."""
     from renderloop.perception.photo_score import OUTPUTS as PHOTO_SCORE_FILES
     from renderloop.perception.photo_score import score_photos, summary
 
-    settings = _photo_detector(_detector_options(model, threshold, windows, mirror))
+    settings = _photo_detector(_detector_options(model, threshold, windows, mirror, min_box))
     with _progress_bar("score-photos") as progress:
         record = score_photos(folder, coco, out, settings, force, progress)
     for line in summary(record):
