@@ -47,8 +47,7 @@ def main() -> None:
             for pose in chosen:
                 frame = renderer.render(pose)
                 seconds.append(frame.timings["total"])
-                score.add([d.to_json() for d in detector.detect(frame.rgb, config.detector.score_threshold, config.detector.layouts,
-                                                                   config.detector.mirror)], frame.mask)
+                score.add([d.to_json() for d in detector.search(frame.rgb, config.detector)], frame.mask)
         results[samples] = {"s_per_frame": summary(seconds[1:] or seconds), **score.summary()}  # the first frame syncs the scene
     best = results[max(args.samples)]["ripe_recall"] or 0.0
     print(f"{'samples':>8}{'s/frame':>10}{'ripe recall':>13}{'vs max':>9}{'false':>8}  ({len(chosen)} frames of {args.run_dir})")

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from renderloop.config.perception import DetectorConfig
 from renderloop.config.training import INPUT_SIZE, INPUT_SIZES
 from renderloop.errors import UserError
 from renderloop.perception.boxes import nms
@@ -157,6 +158,11 @@ class Detector:
     def raw(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         boxes, scores = self.session.run(None, {"images": to_input(rgb, self.input_size)})
         return boxes, scores
+
+    def search(self, rgb: np.ndarray, settings: DetectorConfig, score_threshold: float | None = None) -> list[Detection]:
+        """`detect` with the windows, mirror and smallest box of `settings`, at its threshold unless one is given."""
+        threshold = settings.score_threshold if score_threshold is None else score_threshold
+        return self.detect(rgb, threshold, settings.layouts, settings.mirror, settings.min_box_px)
 
     def detect(self, rgb: np.ndarray, score_threshold: float, layouts: Sequence[Layout] = (), mirror: bool = False,
                min_side: float = 0.0) -> list[Detection]:

@@ -88,7 +88,7 @@ def find_fruit(detector: Detector, rgb: np.ndarray, depth: np.ndarray, pose: np.
     """The detector's boxes on one frame, each with its fruit point in the world (None without depth returns)."""
     cloud, ripe_pixels = organised_cloud(depth, intrinsics), ripe_coloured(rgb)
     detections = []
-    for found in detector.detect(rgb, settings.score_threshold, settings.layouts, settings.mirror, settings.min_box_px):
+    for found in detector.search(rgb, settings):
         point = fruit_point(cloud, found.bbox, intrinsics.fx, ripe_pixels if found.label == "ripe" else None)
         world = None if point is None else tuple(round(float(v), 5) for v in to_world(point, pose))
         box = found.to_json()

@@ -384,7 +384,7 @@ def search(labels: Labels, detector: Detector, floor: float, settings: DetectorC
         if rgb.shape[:2] != (image.height, image.width):  # the header said otherwise: a file that changed since
             raise UserError(f"{_shown(image.path)}: {rgb.shape[1]}x{rgb.shape[0]} pixels, "
                             f"but the labels say {image.width}x{image.height}")
-        photos.append(Searched(image, detector.detect(rgb, floor, settings.layouts, settings.mirror, settings.min_box_px)))
+        photos.append(Searched(image, detector.search(rgb, settings, floor)))
         if index in picks:
             kept[index] = Image.fromarray(rgb)
     if progress:

@@ -56,7 +56,7 @@ def detect_photos(folder: Path, out: Path, settings: DetectorConfig, force: bool
             if progress:
                 progress(done, len(photos))
             rgb = _read_rgb(path)
-            found = detector.detect(rgb, settings.score_threshold, settings.layouts, settings.mirror, settings.min_box_px)
+            found = detector.search(rgb, settings)
             results[path.name] = {"width": rgb.shape[1], "height": rgb.shape[0], "detections": [d.to_json() for d in found]}
     except UserError as error:
         record["error"] = str(error)

@@ -68,8 +68,7 @@ def search_run(run_dir: Path, detector: Detector, settings: DetectorConfig, prog
             progress(index, count)
         # boxes as detections.json stores them, scores unrounded: `detect` compares the unrounded score with its threshold
         found = [{**d.to_json(), "score": d.score}
-                 for d in detector.detect(read_rgb_frame(run_dir, index), PASS_FLOOR, settings.layouts, settings.mirror,
-                                          settings.min_box_px)]
+                 for d in detector.search(read_rgb_frame(run_dir, index), settings, PASS_FLOOR)]
         frames.append((found, FrameTruth.of_mask(read_png(run_dir / names.frame_file(names.MASKS, index), np.uint16))))
     return SearchedRun(scene, frames)
 
