@@ -175,8 +175,13 @@ class Detector:
         whole = (0, 0, width, height)
         passes = [(whole, False), *([(whole, True)] if mirror else []),
                   *((window, False) for window in all_windows(width, height, layouts, self.input_size))]
-        if len(passes) == 1:
-            return [d for d in self._detect_once(rgb, score_threshold) if _shorter_side(d.bbox) >= min_side]
+        found = self._detect_once(rgb, score_threshold) if len(passes) == 1 else self._fused(rgb, passes, score_threshold)
+        return [detection for detection in found if _shorter_side(detection.bbox) >= min_side][:MAX_DETECTIONS]
+
+    def _fused(self, rgb: np.ndarray, passes: list[tuple[tuple[int, int, int, int], bool]], score_threshold: float
+               ) -> list[Detection]:
+        """What the passes (a region of the frame, mirrored or not) found, merged, at `score_threshold`."""
+        height, width = rgb.shape[:2]
         floor = min(PASS_FLOOR, score_threshold)
         found = []
         for number, ((x0, y0, x1, y1), mirrored) in enumerate(passes):
@@ -192,8 +197,8 @@ class Detector:
             return []
         leaders, scores = fuse(np.array([d.bbox for _, d in found]), np.array([d.score for _, d in found]),
                                np.array([number for number, _ in found]))
-        return [Detection(found[k][1].bbox, float(score), found[k][1].label) for k, score in zip(leaders, scores, strict=True)
-                if score >= score_threshold and _shorter_side(found[k][1].bbox) >= min_side][:MAX_DETECTIONS]
+        return [Detection(found[k][1].bbox, float(score), found[k][1].label)
+                for k, score in zip(leaders, scores, strict=True) if score >= score_threshold]
 
     def _detect_once(self, rgb: np.ndarray, score_threshold: float) -> list[Detection]:
         boxes, scores = self.raw(rgb)
