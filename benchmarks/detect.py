@@ -1,16 +1,15 @@
 """Speed of perception: ONNX detector ms per 640x480 frame of peppers (the whole frame alone, with 2x2
 windows, and the default: 2x2 and 3x2 windows and the mirrored frame), one pass of each backbone's network on one
 core, organised point cloud ms per 640x480 frame (side by side with Open3D's `create_from_depth_image` when Open3D
-is installed), training images per second of each backbone.
+is installed). Training speed: benchmarks/train_speed.py.
 
-    .venv/bin/python benchmarks/detect.py [--repeats 30] [--train-steps 5] [--json out.json]
+    .venv/bin/python benchmarks/detect.py [--repeats 30] [--json out.json]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import time
 
 import numpy as np
@@ -112,39 +111,9 @@ def backbone_pass_ms(frame: np.ndarray, repeats: int) -> dict[str, dict]:
     return figures
 
 
-def training_images_per_second(steps: int, batch: int = 16) -> dict[str, float]:
-    """Training images a second of each backbone's detector, on the CPU (and the GPU where there is one)."""
-    import torch
-
-    from renderloop.config.training import BACKBONES
-    from renderloop.perception.training.ssd import build_model
-
-    rates = {}
-    devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
-    for device, backbone in ((d, b) for d in devices for b in BACKBONES):
-        model = build_model(backbone, pretrained=False).to(device).train()
-        optimizer = torch.optim.AdamW(model.parameters(), lr=1e-3)
-        images = [torch.rand(3, 240, 320, device=device) for _ in range(batch)]
-        targets = [{"boxes": torch.tensor([[40.0, 50, 80, 100]], device=device), "labels": torch.tensor([1], device=device)}] * batch
-        times = []
-        for step in range(steps + 1):
-            start = time.perf_counter()
-            loss = sum(model(images, targets).values())
-            optimizer.zero_grad()
-            loss.backward()
-            optimizer.step()
-            if device == "cuda":
-                torch.cuda.synchronize()
-            if step:
-                times.append(batch / (time.perf_counter() - start))
-        rates[f"{device} {backbone}"] = statistics.median(times)
-    return rates
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=30)
-    parser.add_argument("--train-steps", type=int, default=5)
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     rng = np.random.default_rng(0)
@@ -167,8 +136,6 @@ def main() -> None:
     if reference is not None:
         figures["open3d_cloud_ms_per_frame"] = summary(reference)
         figures["cloud_speed_vs_open3d"] = figures["open3d_cloud_ms_per_frame"]["median"] / figures["cloud_ms_per_frame"]["median"]
-    if args.train_steps:
-        figures["training_images_per_s"] = training_images_per_second(args.train_steps)
     print(f"{'figure':<34} {'median':>10} {'min':>10} {'max':>10}")
     for name, value in figures.items():
         if isinstance(value, dict) and "median" in value:

@@ -152,7 +152,7 @@ def main() -> None:
     results = {
         "fly": sub_benchmark("fly", "--repeats", str(repeats), "--seconds", "20" if args.quick else "60"),
         "render": sub_benchmark("render", "--repeats", str(repeats)),
-        "detect": sub_benchmark("detect", "--repeats", "10" if args.quick else "30", "--train-steps", "0"),
+        "detect": sub_benchmark("detect", "--repeats", "10" if args.quick else "30"),
         "counting_ms_per_row": counting_ms_per_row(3 if args.quick else 10),
     }
     raster = {"renderer": {"backend": "raster"}} if args.quick else {}
