@@ -17,6 +17,7 @@ from renderloop.perception.boxes import nms
 from renderloop.perception.detector import Detector, postprocess, to_input
 from renderloop.perception.training.ssd import DecodedSSD, build_model, export_onnx
 from renderloop.perception.training.torch_support import import_torchvision
+from renderloop.perception.training import train as train_module
 from renderloop.perception.training.train import TrainSettings, _schedule, train_detector
 
 from conftest import cli, jittered_model
@@ -109,14 +110,21 @@ def test_learning_rate_warms_up_linearly_then_decays_to_zero_over_the_run():
     assert _schedule(TrainSettings(warmup_steps=0), steps_per_epoch=5)(0) == 1.0  # no warm-up: full rate at once
 
 
-def test_training_checkpoints_resumes_and_exports(tiny_dataset: Path, tmp_path: Path):
+def test_training_checkpoints_resumes_and_exports(tiny_dataset: Path, tmp_path: Path, monkeypatch):
     out = tmp_path / "model.onnx"
     settings = TrainSettings(epochs=2, batch_size=4, warmup_steps=1)
-    first = train_detector(tiny_dataset, out, TrainSettings(**{**settings.model_dump(), "max_steps": 2}), device="cpu", workers=0, log=lambda _: None)
+    with monkeypatch.context() as patch:  # the first epoch in torch's default layout: a checkpoint of either layout resumes
+        patch.setattr(train_module, "MEMORY_FORMAT", torch.contiguous_format)
+        first = train_detector(tiny_dataset, out, TrainSettings(**{**settings.model_dump(), "max_steps": 2}), device="cpu", workers=0,
+                               log=lambda _: None)
     assert [e["epoch"] for e in first["history"]] == [1]
+    first_conv = "backbone.features.0.0.0.weight"
+    assert torch.load(out.with_suffix(".ckpt"), weights_only=True)["model"][first_conv].is_contiguous()
     logged = []
     record = train_detector(tiny_dataset, out, settings, device="cpu", workers=0, log=logged.append)
     assert logged[0].startswith("resuming after epoch 1")
+    resumed = torch.load(out.with_suffix(".ckpt"), weights_only=True)["model"][first_conv]
+    assert resumed.is_contiguous(memory_format=torch.channels_last) and not resumed.is_contiguous()  # trained in NHWC
     assert [e["epoch"] for e in record["history"]] == [1, 2]
     assert {"map50", "map", "ap50_ripe", "ap50_unripe", "loss"} <= set(record["history"][-1])
     assert json.loads(out.with_suffix(".json").read_text())["train_images"] == 8
