@@ -35,13 +35,13 @@ def images_per_second(backbone: str, memory_format, device: str, size: int, step
     """Median images a second over `steps` training steps, after one step of warm-up."""
     import torch
 
-    from renderloop.config.training import MOBILENET_V3, TrainSettings
+    from renderloop.config.training import TrainSettings
     from renderloop.perception.training.backbones import frozen_layers
     from renderloop.perception.training.ssd import build_model
 
     torch.manual_seed(0)
     model = build_model(backbone, pretrained=False)
-    frozen = [] if backbone == MOBILENET_V3 else frozen_layers(model, TrainSettings().frozen_layers)
+    frozen = frozen_layers(model, TrainSettings().frozen_layers)
     model = model.to(device, memory_format=memory_format).train()
     for layer in frozen:
         layer.eval()

@@ -130,3 +130,10 @@ def test_the_frozen_layers_keep_their_imagenet_weights_and_statistics_while_the_
         names = [key for key in imagenet if key.startswith(f"{prefix}{layer}.") and "num_batches" not in key]
         kept = [torch.equal(trained[key], imagenet[key]) for key in names]
         assert all(kept) if layer < 2 else not any(kept), layer
+
+
+def test_a_detector_from_random_weights_has_no_layers_to_keep_and_freezes_none():
+    model = build_model("mobilenet-v3", pretrained=False)
+    assert backbones.frozen_layers(model, 6) == [] and all(p.requires_grad for p in model.parameters())
+    lite0 = build_model("efficientnet-lite0", pretrained=False)
+    assert len(backbones.frozen_layers(lite0, 6)) == 6

@@ -26,7 +26,7 @@ import torch
 from torch import nn
 from torch.nn import functional
 
-from renderloop.config.training import EFFICIENTNET_LITE0
+from renderloop.config.training import EFFICIENTNET_LITE0, MOBILENET_V3
 from renderloop.errors import UserError
 from renderloop.perception.training.torch_support import import_torchvision
 
@@ -161,7 +161,10 @@ def frozen_layers(model: nn.Module, count: int) -> list[nn.Module]:
     """Freeze the first `count` layers of a detector's EfficientNet-Lite0 (stem, then blocks: 6 reach stride 8) and
     return them; the training loop keeps them in eval mode so that their batch norms keep ImageNet's statistics.
     Freezing the early layers of a pretrained extractor is what lets a detector trained on renders only keep
-    real-image features (Hinterstoisser et al. 2018), and their backward pass is most of a CPU step's cost."""
+    real-image features (Hinterstoisser et al. 2018), and their backward pass is most of a CPU step's cost.
+    A detector over `mobilenet-v3` starts from random weights: it has nothing to keep, and none are frozen."""
+    if model.renderloop_backbone == MOBILENET_V3:
+        return []
     layers = list(model.backbone.features[0])[:count]  # SSDlite's first part: the network up to the stride-16 tap
     for layer in layers:
         layer.requires_grad_(False)

@@ -182,7 +182,7 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
     frozen_norms = init is not None and Path(init).suffix == ".onnx"  # its batch norms are folded: keep them as they are
     if init is not None:
         model.load_state_dict(_initial_weights(Path(init), model, settings.backbone))
-    frozen = [] if settings.backbone == MOBILENET_V3 else frozen_layers(model, settings.frozen_layers)
+    frozen = frozen_layers(model, settings.frozen_layers)
     model = model.to(run_device, memory_format=MEMORY_FORMAT)
     optimizer = torch.optim.AdamW(_parameter_groups(model, settings), lr=settings.learning_rate, weight_decay=settings.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _schedule(settings, len(loader)))
