@@ -18,6 +18,7 @@ from pathlib import Path
 from common import as_table, save_result
 
 from renderloop.config import Config
+from renderloop.perception.boxes import shorter_side
 from renderloop.perception.detector import Detector
 from renderloop.perception.scoring import findable, match
 from renderloop.perception.threshold import choose, score_thresholds, search_run
@@ -39,7 +40,7 @@ def recall_by_side(runs, threshold: float) -> dict[str, float]:
             for pepper, box in truth.peppers.items():
                 if not findable(box):
                     continue
-                side = min(box[2] - box[0], box[3] - box[1])
+                side = shorter_side(box)
                 for k, (low, high) in enumerate(SIDES) if ripe[pepper] else [(len(SIDES), (0, None))]:
                     if low <= side and (high is None or side < high):
                         found[k] += pepper in hits

@@ -21,6 +21,7 @@ import numpy as np
 from matplotlib.path import Path as PolygonPath
 from scipy.spatial import ConvexHull, QhullError
 
+from renderloop.perception.boxes import shorter_side
 from renderloop.perception.scoring import mask_boxes
 from renderloop.render.camera import Intrinsics
 from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Pepper, Scene
@@ -75,7 +76,7 @@ def silhouette_pixels(vertices: np.ndarray, pose: np.ndarray, intrinsics: Intrin
 
 def _record(pepper_id: int | None, box: tuple[int, int, int, int], pepper: Pepper, pixels: int, visible: float,
             min_side: float) -> dict:
-    tiny = min(box[2] - box[0], box[3] - box[1]) < min_side
+    tiny = shorter_side(box) < min_side
     return {
         "pepper_id": pepper_id, "bbox": list(box), "label": label_of(pepper), "pixels": pixels,
         "visible_fraction": round(min(visible, 1.0), 4),

@@ -1,8 +1,13 @@
-"""Box geometry shared by the detector, the merging of its passes and the scoring: overlap and NMS."""
+"""Box geometry shared by the detector, the merging of its passes, the scoring and the labels: size, overlap and NMS."""
 
 from __future__ import annotations
 
 import numpy as np
+
+
+def shorter_side(box: tuple[float, float, float, float]) -> float:
+    """The shorter side of one x0 y0 x1 y1 box: what decides whether a box is big enough to find or to keep."""
+    return min(box[2] - box[0], box[3] - box[1])
 
 
 def box_area(boxes: np.ndarray) -> np.ndarray:

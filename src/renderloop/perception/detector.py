@@ -27,7 +27,7 @@ from PIL import Image
 from renderloop.config.perception import DetectorConfig
 from renderloop.config.training import INPUT_SIZE, INPUT_SIZES
 from renderloop.errors import UserError
-from renderloop.perception.boxes import nms
+from renderloop.perception.boxes import nms, shorter_side
 from renderloop.perception.fusion import fuse
 from renderloop.perception.tiling import Layout, all_windows, cut_by_window
 
@@ -80,10 +80,6 @@ def postprocess(boxes: np.ndarray, scores: np.ndarray, width: int, height: int, 
     scale = np.array([width, height, width, height], dtype=np.float64) / input_size
     return [Detection(tuple(float(v) for v in cand_boxes[k] * scale), float(cand_scores[k]), CLASSES[labels[k] - 1])
             for k in keep]
-
-
-def _shorter_side(box: tuple[float, float, float, float]) -> float:
-    return min(box[2] - box[0], box[3] - box[1])
 
 
 def contract_breach(boxes: np.ndarray, scores: np.ndarray) -> str | None:
@@ -176,7 +172,7 @@ class Detector:
         passes = [(whole, False), *([(whole, True)] if mirror else []),
                   *((window, False) for window in all_windows(width, height, layouts, self.input_size))]
         found = self._detect_once(rgb, score_threshold) if len(passes) == 1 else self._fused(rgb, passes, score_threshold)
-        return [detection for detection in found if _shorter_side(detection.bbox) >= min_side][:MAX_DETECTIONS]
+        return [detection for detection in found if shorter_side(detection.bbox) >= min_side][:MAX_DETECTIONS]
 
     def _fused(self, rgb: np.ndarray, passes: list[tuple[tuple[int, int, int, int], bool]], score_threshold: float
                ) -> list[Detection]:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from renderloop.perception.boxes import box_area, box_iou, intersection
+from renderloop.perception.boxes import box_area, box_iou, intersection, shorter_side
 from renderloop.rundir.models import DetectionFrame, DetectionScores
 from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Scene
 
@@ -85,7 +85,7 @@ def match(detections: list[dict], truth: dict[int, tuple[int, int, int, int]]) -
 
 
 def findable(box: tuple[int, int, int, int]) -> bool:
-    return box[2] - box[0] >= MIN_SIDE and box[3] - box[1] >= MIN_SIDE
+    return shorter_side(box) >= MIN_SIDE
 
 
 def share_inside(box: list[float], regions: list[tuple[int, int, int, int]]) -> float:
