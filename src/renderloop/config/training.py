@@ -40,8 +40,8 @@ class TrainSettings(Strict):
         "wipes out what they learned on ImageNet within a few hundred steps.")
     frozen_layers: Count(0, 12) = Field(
         6, description="The pretrained backbone's first layers (stem, then blocks) that keep their ImageNet weights and "
-        "batch-norm statistics: 6 holds the layers down to stride 8, which trains 2.3 times faster on a CPU and keeps "
-        "the low-level features learned on real photos. 0 trains every layer.")
+        "batch-norm statistics: 6 holds the layers down to stride 8, which trains faster on a CPU and keeps the "
+        "low-level features learned on real photos. 0 trains every layer.")
     train_size: Count(INPUT_SIZES[0], INPUT_SIZES[-1]) = Field(
         INPUT_SIZE, description="Square input the network trains at, px, a multiple of 32: larger shows small fruit "
         "larger, at about the square of the cost a step and a pass. Its default boxes keep their sizes in pixels.")
