@@ -161,7 +161,7 @@ def frozen_layers(model: nn.Module, count: int) -> list[nn.Module]:
     """Freeze the first `count` layers of a detector's EfficientNet-Lite0 (stem, then blocks: 6 reach stride 8) and
     return them; the training loop keeps them in eval mode so that their batch norms keep ImageNet's statistics.
     Freezing the early layers of a pretrained extractor is what lets a detector trained on renders only keep
-    real-image features (Hinterstoisser et al. 2018), and their backward pass is most of a CPU step's cost.
+    real-image features (Hinterstoisser et al. 2018), and their backward pass is much of a CPU step's cost.
     A detector over `mobilenet-v3` starts from random weights: it has nothing to keep, and none are frozen."""
     if model.renderloop_backbone == MOBILENET_V3:
         return []
