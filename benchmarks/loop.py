@@ -11,18 +11,18 @@ Paper preset, the scan's first `--seconds` simulated seconds, in one run side by
   not rendered yet, never while a frame renders that nobody needs yet.
 Goal (issue 23): at least 5x real time with the raster camera at 5 Hz and detection, on 2 cores.
 
-    .venv/bin/python benchmarks/loop.py [--seconds 20] [--repeats 3] [--cycles] [--workers 2] [--json out.json]
+    .venv/bin/python benchmarks/loop.py [--seconds 20] [--repeats 3] [--cycles] [--workers 2] [--name loop]
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import statistics
 import tempfile
 import time
 from pathlib import Path
 
-from common import summary
+from common import save_result
 
 from renderloop.config import Config, load_config
 from renderloop.counting.online import OnlineCounter
@@ -82,39 +82,46 @@ def main() -> None:
     parser.add_argument("--cycles", action="store_true", help="also the Cycles camera (slow: about 1 s a frame a core)")
     parser.add_argument("--cycles-rate", type=float, default=1.0, help="Cycles camera rate, Hz")
     parser.add_argument("--workers", type=int, default=2, help="Cycles render processes")
-    parser.add_argument("--json", type=Path)
+    parser.add_argument("--name", default="loop", help="Results file: benchmarks/results/NAME.json.")
     args = parser.parse_args()
 
-    rows: dict[str, dict] = {}
+    rows: list[tuple[str, list[float]]] = []
+    cycles_figures = None
     with tempfile.TemporaryDirectory() as tmp:
-        run_dir = Path(tmp) / "run"
+        def rates(name: str, config: Config, **options) -> list[float]:
+            run_dir = Path(tmp) / name
+            closed_loop(run_dir, config, 1.0, camera=True)  # scene, plan, detector and GL context made once, untimed
+            return [closed_loop(run_dir, config, args.seconds, camera=True, **options)[0] for _ in range(args.repeats)]
+
         raster = _config("raster", 5.0)
-        closed_loop(run_dir, raster, 1.0, camera=True)  # scene, plan, detector and GL context made once, outside the timing
-        rows["flight alone"] = summary([closed_loop(run_dir, raster, args.seconds, camera=False)[0] for _ in range(args.repeats)])
-        raster_runs = [closed_loop(run_dir, raster, args.seconds, camera=True) for _ in range(args.repeats)]
-        rows["raster camera 5 Hz + detection"] = summary([r[0] for r in raster_runs])
-        one_pass, one_pass_dir = _config("raster", 5.0, one_pass=True), Path(tmp) / "one_pass"
-        closed_loop(one_pass_dir, one_pass, 1.0, camera=True)
-        rows["raster camera 5 Hz + one-pass detection"] = summary(
-            [closed_loop(one_pass_dir, one_pass, args.seconds, camera=True)[0] for _ in range(args.repeats)])
-        fast, fast_dir = _config("raster", 5.0, one_pass=True, fast_look=True), Path(tmp) / "fast"
-        closed_loop(fast_dir, fast, 1.0, camera=True)
-        rows["  the same, raster without shadows or antialiasing"] = summary(
-            [closed_loop(fast_dir, fast, args.seconds, camera=True)[0] for _ in range(args.repeats)])
-        rows["  the same, the frames' PNGs compressed (run --online)"] = summary(
-            [closed_loop(fast_dir, fast, args.seconds, camera=True, encode=True)[0] for _ in range(args.repeats)])
+        default = rates("default", raster)
+        rows.append(("flight alone", [closed_loop(Path(tmp) / "default", raster, args.seconds, camera=False)[0]
+                                      for _ in range(args.repeats)]))
+        rows.append(("raster camera 5 Hz + detection, the defaults (shadows, 4x multisampling; twelve detector passes)",
+                     default))
+        rows.append(("the same, the detector's one pass over the whole frame",
+                     rates("one_pass", _config("raster", 5.0, one_pass=True))))
+        fast = _config("raster", 5.0, one_pass=True, fast_look=True)
+        rows.append(("the same, the raster view without shadows or multisampling", rates("fast", fast)))
+        rows.append(("the same, the frames' PNGs compressed as `renderloop run --online` writes them",
+                     rates("fast_png", fast, encode=True)))
         if args.cycles:
-            cycles_dir = Path(tmp) / "cycles"
-            cycles = _config("cycles", args.cycles_rate)
-            runs = [closed_loop(cycles_dir, cycles, args.seconds, camera=True, workers=args.workers)]
-            rows[f"Cycles camera {args.cycles_rate:g} Hz, {args.workers} workers + detection"] = summary([r[0] for r in runs])
-            rows["  of which waiting for the last frames, s"] = summary([r[1] for r in runs])
+            rate, waited, frames = closed_loop(Path(tmp) / "cycles", _config("cycles", args.cycles_rate), args.seconds,
+                                               camera=True, workers=args.workers)
+            rows.append((f"Cycles camera {args.cycles_rate:g} Hz, {args.workers} worker processes + detection", [rate]))
+            wall = args.seconds / rate
+            cycles_figures = {"wall_s": round(wall, 1), "waiting_for_last_frames_s": round(waited, 1),
+                              "flight_and_requests_s": round(wall - waited, 1), "frames": frames}
+    table = [[name, float(f"{statistics.median(values):.3g}"),
+              f"{min(values):.3g}-{max(values):.3g}" if len(values) > 1 else "one run"] for name, values in rows]
     print(f"closed loop online, paper preset seed 7, {args.seconds:g} s simulated, {args.repeats} repeats")
-    print(f"{'figure (real-time factor)':<58}{'median':>10}{'min':>10}{'max':>10}")
-    for name, row in rows.items():
-        print(f"{name:<58}{row['median']:>10.2f}{row['min']:>10.2f}{row['max']:>10.2f}")
-    if args.json:
-        args.json.write_text(json.dumps(rows, indent=1) + "\n")
+    for name, median, spread in table:
+        print(f"{name:<110}{median:>8}{spread:>14}")
+    figures = {"table": {"columns": [f"loop, paper preset seed 7, {args.seconds:g} s simulated",
+                                     "real-time factor, median", "min-max"], "rows": table}}
+    if cycles_figures is not None:
+        figures["cycles"] = cycles_figures
+    print(save_result(args.name, figures))
 
 
 if __name__ == "__main__":
