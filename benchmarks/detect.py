@@ -87,7 +87,7 @@ def torch_and_onnx_ms(frame: np.ndarray, repeats: int) -> tuple[list[float], lis
     return torch_ms, timed(lambda: onnx.detect(frame, 0.5), repeats)
 
 
-DEFAULT_GOAL_MS = 50  # the default setting's cost goal a frame (issue 48), so that the loop runs 3x real time on 2 cores
+DEFAULT_GOAL_MS = 50  # the default detector setting's cost goal, ms a 640x480 frame on one core (issue 48)
 EXPORT_SIZES = (320, 384, 448, 512)  # square inputs each backbone's detector is timed at
 
 
