@@ -91,7 +91,7 @@ DEFAULT_GOAL_MS = 50  # the default detector setting's cost goal, ms a 640x480 f
 EXPORT_SIZES = (320, 384, 448, 512)  # square inputs each backbone's detector is timed at
 
 
-def backbone_pass_ms(frame: np.ndarray, repeats: int) -> dict[str, list[float]]:
+def backbone_pass_ms(frame: np.ndarray, repeats: int) -> dict[tuple[str, int], list[float]]:
     """One pass of the whole frame through each backbone's detector at each of EXPORT_SIZES (random weights: speed
     does not depend on them) with ONNX Runtime on one core, side by side."""
     import tempfile
@@ -108,7 +108,7 @@ def backbone_pass_ms(frame: np.ndarray, repeats: int) -> dict[str, list[float]]:
                 path = Path(folder) / f"{backbone}.onnx"
                 export_onnx(model, path, input_size=size)
                 detector = Detector(path, threads=1)
-            figures[f"{backbone} {size}"] = timed(lambda: detector.detect(frame, 0.5), repeats)
+            figures[backbone, size] = timed(lambda: detector.detect(frame, 0.5), repeats)
     return figures
 
 
@@ -128,8 +128,8 @@ def main() -> None:
             (f"detector, the default: {', '.join(defaults.windows)} windows and the mirrored frame "
              f"({passes} passes)", timed(lambda: detector.search(frame, defaults, 0.5), args.repeats),
              f"≤ {DEFAULT_GOAL_MS}")]
-    rows += [(f"one pass, {name.split()[0]} at {name.split()[1]} px", values, "")
-             for name, values in backbone_pass_ms(frame, args.repeats).items()]
+    rows += [(f"one pass, {backbone} at {size} px", values, "")
+             for (backbone, size), values in backbone_pass_ms(frame, args.repeats).items()]
     cloud = timed(lambda: organised_cloud(depth, intrinsics), args.repeats)
     rows.append(("organised point cloud", cloud, "≤ 5"))
     reference = open3d_cloud_ms(depth, intrinsics, args.repeats)
