@@ -37,7 +37,7 @@ def _config(backend: str, rate_hz: float, one_pass: bool = False, fast_look: boo
     if one_pass:
         data["detector"].update(windows=[], mirror=False)
     if fast_look:
-        data["renderer"]["raster"].update(shadows=False, antialias=0)
+        data["renderer"]["raster"].update(antialias=0)
     return Config.model_validate(data)
 
 
@@ -97,12 +97,12 @@ def main() -> None:
         default = rates("default", raster)
         rows.append(("flight alone", [closed_loop(Path(tmp) / "default", raster, args.seconds, camera=False)[0]
                                       for _ in range(args.repeats)]))
-        rows.append(("raster camera 5 Hz + detection, the defaults (shadows, 4x multisampling; twelve detector passes)",
+        rows.append(("raster camera 5 Hz + detection, the defaults (4x multisampling; twelve detector passes)",
                      default))
         rows.append(("the same, the detector's one pass over the whole frame",
                      rates("one_pass", _config("raster", 5.0, one_pass=True))))
         fast = _config("raster", 5.0, one_pass=True, fast_look=True)
-        rows.append(("the same, the raster view without shadows or multisampling", rates("fast", fast)))
+        rows.append(("the same, the raster view without multisampling", rates("fast", fast)))
         rows.append(("the same, the frames' PNGs compressed as `renderloop run --online` writes them",
                      rates("fast_png", fast, encode=True)))
         if args.cycles:

@@ -197,7 +197,7 @@ def test_raster_colours_come_from_the_material_table(raster):
     assert tuple(model.geom_rgba[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"pepper_{pepper.id}")]) == pytest.approx((*pepper.rgb, 1))
 
 
-def test_the_raster_look_without_shadows_or_antialiasing_changes_the_colour_alone(raster):
+def test_the_raster_look_with_shadows_or_without_antialiasing_changes_the_colour_alone(raster):
     config, scene, intrinsics, renderer = raster
     plant = scene.plants[0]
     pose = look_at(np.array(plant.position) + (0.0, -0.7, 0.5), np.array(plant.position) + (0.0, 0.0, 0.2))
@@ -209,10 +209,21 @@ def test_the_raster_look_without_shadows_or_antialiasing_changes_the_colour_alon
         assert np.array_equal(before.depth, frame.depth) and np.array_equal(before.mask, frame.mask)
         return frame.rgb.astype(int).sum(axis=2) - before.rgb.astype(int).sum(axis=2)
 
-    unshadowed = render(shadows=False)
-    assert (unshadowed > 30).mean() > 0.01 and unshadowed.min() > -20  # shadowed pixels lit, none darkened but at an edge
+    shadowed = render(shadows=True)
+    assert (shadowed < -30).mean() > 0.01 and shadowed.max() < 20  # shadowed pixels darker, none lit but at an edge
     aliased = render(antialias=0)
     assert 0 < (aliased != 0).mean() < 0.1  # edges, no longer blended
+
+
+def test_the_raster_sun_casts_its_shadows_wherever_the_camera_looks(raster):
+    """The sun's shadow map follows the camera: looking down on each plant of the row, from one end of the room to the
+    other, its shadow darkens the bench beside it."""
+    config, scene, intrinsics, renderer = raster
+    with RasterRenderer(scene, config.override({"renderer": {"raster": {"shadows": True}}}), intrinsics) as shadowed:
+        for plant in scene.plants:
+            pose = look_at(np.array(plant.position) + (0.0, -0.3, 1.5), np.array(plant.position))
+            darker = shadowed.render(pose).rgb.astype(int).sum(axis=2) < renderer.render(pose).rgb.astype(int).sum(axis=2) - 30
+            assert darker.mean() > 0.02, plant.id
 
 
 def test_the_render_device_is_not_part_of_the_record(flown: Path):

@@ -79,10 +79,10 @@ class BouncesConfig(Strict):
 
 
 class RasterConfig(Strict):
-    """MuJoCo's OpenGL look, for a user trading it against speed: on 2 cores through llvmpipe the sun's shadow map
-    and the multisampling are most of a dense frame's cost (docs/stages/render.md)."""
+    """MuJoCo's OpenGL look, for a user trading it against speed: on 2 cores through llvmpipe the sun's shadows
+    double a frame's cost or more, the multisampling adds half (docs/stages/render.md)."""
 
-    shadows: bool = Field(True, description="The sun casts shadows (a 2048 x 2048 shadow map).")
+    shadows: bool = Field(False, description="The sun casts shadows (a 2048 x 2048 shadow map over the view).")
     antialias: Count(0, 16) = Field(4, description="Multisamples per pixel of the colour image; 0 turns antialiasing off.")
 
 

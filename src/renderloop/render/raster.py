@@ -34,10 +34,12 @@ from renderloop.scene.objects import SceneObject, greenhouse_objects
 from renderloop.scene.visible import farthest_seen, visible_scene
 from renderloop.scene.world import shape_geom
 
-CAMERA = "render_camera"
+CAMERA, CAMERA_RIG, SUN_RIG = "render_camera", "camera_rig", "sun_rig"
 SKY_BINS = 4096  # rows of the sky's table over a ray's world z in [-1, 1]: a fifth of an 8-bit level apart at most
 HIDDEN = 5  # the geom group a frame does not draw: the geoms out of the camera's reach
 SUN = (0.3, 0.4, -1.0)  # the direction the sun's light travels: dir of the world's light "sun"
+SHADOW_MAP = 2048  # texels a side of the sun's shadow map
+FLOOR_MARGIN = 0.2  # m: how far below the floor (z = 0) the sun's shadow map reaches
 GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)  # an int: numpy compares an array with the enum object in Python, pixel by pixel
 
 
@@ -100,23 +102,44 @@ def render_world_xml(objects: list[SceneObject], config: Config, intrinsics: Int
     ET.SubElement(root, "statistic", extent="1", center="0 0 0")  # so that znear and zfar are in metres
     visual = ET.SubElement(root, "visual")
     ET.SubElement(visual, "global", offwidth=str(intrinsics.width), offheight=str(intrinsics.height))
-    ET.SubElement(visual, "map", znear=repr(near), zfar=repr(far))
+    # shadowclip: the half-width (m, as extent is 1) of the sun's shadow map about its axis (_sun_position)
+    ET.SubElement(visual, "map", znear=repr(near), zfar=repr(far), shadowclip=repr(_shadow_reach(intrinsics, far)))
     look = config.renderer.raster
-    ET.SubElement(visual, "quality", shadowsize="2048", offsamples=str(look.antialias))
+    ET.SubElement(visual, "quality", shadowsize=str(SHADOW_MAP), offsamples=str(look.antialias))
     ET.SubElement(visual, "headlight", ambient="0.3 0.3 0.3", diffuse="0.4 0.4 0.4", specular="0.1 0.1 0.1")
     default = ET.SubElement(root, "default")
     ET.SubElement(default, "geom", contype="0", conaffinity="0")
     asset = ET.SubElement(root, "asset")
     world = ET.SubElement(root, "worldbody")
-    ET.SubElement(world, "light", name="sun", directional="true", pos="0 0 5", dir=" ".join(f"{v:g}" for v in SUN), diffuse="0.6 0.6 0.6",
-                  castshadow=str(look.shadows).lower())
+    # the sun rides a body of its own that each frame moves to where its shadow map covers the camera's view
+    sun = ET.SubElement(world, "body", name=SUN_RIG, mocap="true")
+    ET.SubElement(sun, "light", name="sun", directional="true", pos="0 0 0", dir=" ".join(f"{v:g}" for v in SUN),
+                  diffuse="0.6 0.6 0.6", castshadow=str(look.shadows).lower())
     files: dict[str, bytes] = {}
     for obj in objects:
         _add_object(asset, files, world, obj)
-    rig = ET.SubElement(world, "body", name="camera_rig", mocap="true")
+    rig = ET.SubElement(world, "body", name=CAMERA_RIG, mocap="true")
     ET.SubElement(rig, "camera", name=CAMERA, fovy=repr(intrinsics.fovy_deg))
     ET.indent(root)
     return ET.tostring(root, encoding="unicode"), files
+
+
+def _shadow_reach(intrinsics: Intrinsics, far: float) -> float:
+    """The half-width (m) of the sun's shadow map about its axis (`_sun_position`), which passes through the point half
+    the far clip ahead of the camera: wide enough to hold every point the frame can show, out to its far corners."""
+    off_axis = np.sqrt(farthest_seen(far, **dataclasses.asdict(intrinsics)) ** 2 - far**2)  # a far corner's, m
+    return float(np.hypot(far / 2, off_axis))
+
+
+def _sun_position(pose: np.ndarray, far: float) -> np.ndarray:
+    """Where the sun's light stands for the camera at `pose`: MuJoCo draws a directional light's shadow map from its
+    position, over `_shadow_reach` either side of its axis and out to the far clip along its light. The axis
+    goes through the point half the far clip ahead of the camera, and the box ends FLOOR_MARGIN under the floor, so
+    that it holds the view and what stands above it up to the box's top."""
+    sun = np.array(SUN) / np.linalg.norm(SUN)
+    centre = pose[:3, 3] + pose[:3, 2] * far / 2
+    to_floor = (-FLOOR_MARGIN - centre[2]) / sun[2]  # along the light from the centre to under the floor
+    return centre + sun * (to_floor - far)
 
 
 def _frustum_sides(intrinsics: Intrinsics) -> np.ndarray:
@@ -167,6 +190,8 @@ class RasterRenderer:
         self.option.geomgroup[HIDDEN] = 0
         self.camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self.camera.fixedcamid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, CAMERA)
+        self.camera_rig, self.sun_rig = (model.body_mocapid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, rig)]
+                                         for rig in (CAMERA_RIG, SUN_RIG))
         self.rect = mujoco.MjrRect(0, 0, self.width, self.height)
         extent = model.stat.extent  # the clip planes of the GL projection, float32 as glFrustum has them
         self.gl_near, self.gl_far = np.float32(model.vis.map.znear * extent), np.float32(model.vis.map.zfar * extent)
@@ -193,8 +218,9 @@ class RasterRenderer:
     def render(self, pose: np.ndarray) -> RenderedFrame:
         start = time.perf_counter()
         camera = to_gl_camera(pose)
-        self.data.mocap_pos[0] = camera[:3, 3]
-        mujoco.mju_mat2Quat(self.data.mocap_quat[0], camera[:3, :3].ravel())
+        self.data.mocap_pos[self.camera_rig] = camera[:3, 3]
+        mujoco.mju_mat2Quat(self.data.mocap_quat[self.camera_rig], camera[:3, :3].ravel())
+        self.data.mocap_pos[self.sun_rig] = _sun_position(np.asarray(pose, dtype=float), self.far)
         mujoco.mj_forward(self.model, self.data)
         self._show_in_view(np.asarray(pose, dtype=float))
         self.gl.make_current()
