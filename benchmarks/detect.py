@@ -1,6 +1,6 @@
 """Speed of perception on one core: ONNX detector ms per 640x480 frame of peppers (the whole frame alone, with 2x2
 windows, and the default: 2x2 and 3x2 windows and the mirrored frame), one pass of each backbone's network at each
-export size, organised point cloud ms per 640x480 frame (side by side with Open3D's `create_from_depth_image` when
+export size in float32 and quantized to int8, organised point cloud ms per 640x480 frame (side by side with Open3D's `create_from_depth_image` when
 Open3D is installed); saved to benchmarks/results/NAME.json. Training speed: benchmarks/train_speed.py.
 
     .venv/bin/python benchmarks/detect.py [--repeats 30] [--name perception_speed]
@@ -91,13 +91,15 @@ DEFAULT_GOAL_MS = 50  # the default detector setting's cost goal, ms a 640x480 f
 EXPORT_SIZES = (320, 384, 448, 512)  # square inputs each backbone's detector is timed at
 
 
-def backbone_pass_ms(frame: np.ndarray, repeats: int) -> dict[tuple[str, int], list[float]]:
-    """One pass of the whole frame through each backbone's detector at each of EXPORT_SIZES (random weights: speed
-    does not depend on them) with ONNX Runtime on one core, side by side."""
+def backbone_pass_ms(frame: np.ndarray, repeats: int) -> dict[tuple[str, int, str], list[float]]:
+    """One pass of the whole frame through each backbone's detector at each of EXPORT_SIZES, in float32 and quantized to
+    int8 (`renderloop quantize`; random weights, calibrated on the frame: speed does not depend on them), with ONNX
+    Runtime on one core, side by side."""
     import tempfile
     from pathlib import Path
 
     from renderloop.config.training import BACKBONES
+    from renderloop.perception.training.quantize import quantize_detector
     from renderloop.perception.training.ssd import build_model, export_onnx
 
     figures = {}
@@ -107,8 +109,11 @@ def backbone_pass_ms(frame: np.ndarray, repeats: int) -> dict[tuple[str, int], l
             with tempfile.TemporaryDirectory() as folder:
                 path = Path(folder) / f"{backbone}.onnx"
                 export_onnx(model, path, input_size=size)
-                detector = Detector(path, threads=1)
-            figures[backbone, size] = timed(lambda: detector.detect(frame, 0.5), repeats)
+                detectors = {"float32": Detector(path, threads=1),
+                             "int8": Detector(quantize_detector(path, [frame], path.with_suffix(".int8.onnx"), "the frame"),
+                                              threads=1)}
+            for kind, detector in detectors.items():
+                figures[backbone, size, kind] = timed(lambda: detector.detect(frame, 0.5), repeats)
     return figures
 
 
@@ -128,8 +133,8 @@ def main() -> None:
             (f"detector, the default: {', '.join(defaults.windows)} windows and the mirrored frame "
              f"({passes} passes)", timed(lambda: detector.search(frame, defaults, 0.5), args.repeats),
              f"≤ {DEFAULT_GOAL_MS}")]
-    rows += [(f"one pass, {backbone} at {size} px", values, "")
-             for (backbone, size), values in backbone_pass_ms(frame, args.repeats).items()]
+    rows += [(f"one pass, {backbone} at {size} px, {kind}", values, "")
+             for (backbone, size, kind), values in backbone_pass_ms(frame, args.repeats).items()]
     cloud = timed(lambda: organised_cloud(depth, intrinsics), args.repeats)
     rows.append(("organised point cloud", cloud, "≤ 5"))
     reference = open3d_cloud_ms(depth, intrinsics, args.repeats)

@@ -277,6 +277,12 @@ def dataset_runs(
     typer.echo(f"dataset: {made} frames of {len(run_dirs)} runs in {out}")
 
 
+def _train_extra(work: str, error: ImportError) -> UserError:
+    """The one line for `work` without the train extra's packages."""
+    why = f"{error.name} is missing" if error.name else str(error)  # a module that is there but fails to load has no name
+    return UserError(f"{work} needs the train extra: pip install 'renderloop[train]' ({why})")
+
+
 def _setting(name: str) -> Any:
     """The `train` option of a TrainSettings field: the model's description and default; a value not given (None) is
     the model's default, and the model checks the range of one given."""
@@ -317,8 +323,7 @@ def train(
     try:
         from renderloop.perception.training.train import Photos, backbone_of_init, train_detector
     except ImportError as error:
-        why = f"{error.name} is missing" if error.name else str(error)  # a module that is there but fails to load has no name
-        raise UserError(f"training needs the train extra: pip install 'renderloop[train]' ({why})") from None
+        raise _train_extra("training", error) from None
     if init is not None and str(init) == "shipped":
         init = shipped_model()
     if (photos is None) != (coco is None):
@@ -333,6 +338,27 @@ def train(
                             init=init, photos=own, input_size=input_size)
     last = record["history"][-1] if record["history"] else {}
     typer.echo(f"train: wrote {out} (val mAP@0.5 {last.get('map50', float('nan')):.3f})")
+
+
+@app.command()
+def quantize(
+    model: Annotated[Path, typer.Argument(help="The ONNX detector to quantize, or 'shipped'.", show_default=False)],
+    dataset_dirs: Annotated[list[Path], typer.Argument(help="Dataset folders made by `renderloop dataset`: the "
+                                                       "calibration renders come from their training splits.",
+                                                       show_default=False)],
+    out: Annotated[Path, typer.Option(help="The int8 ONNX model to write.", show_default=False)],
+    images: Annotated[int, typer.Option(min=1, max=100_000, help="Calibration renders.")] = 64,
+    seed: Annotated[int, typer.Option(help="Seed of the calibration renders' draw.")] = 0,
+) -> None:
+    """Quantize a detector to int8 for ONNX Runtime's integer kernels, calibrated on renders (docs/stages/perception.md)."""
+    from renderloop.perception.detector import shipped_model
+
+    try:
+        from renderloop.perception.training.quantize import quantize_on_renders
+    except ImportError as error:
+        raise _train_extra("quantizing", error) from None
+    made = quantize_on_renders(shipped_model() if str(model) == "shipped" else model, dataset_dirs, out, images, seed)
+    typer.echo(f"quantize: wrote {made}")
 
 
 def _detector_options(model: Path | None, threshold: float | None, windows: str | None, mirror: bool | None,

@@ -32,6 +32,7 @@ from renderloop.perception.detector import CLASSES
 from renderloop.perception.training.backbones import frozen_layers
 from renderloop.perception.training.data import PepperBoxes, PhotoBoxes, collate
 from renderloop.perception.training.from_onnx import freeze_batch_norms, onnx_metadata, weights_from_onnx
+from renderloop.perception.training.quantize import QUANTIZED
 from renderloop.perception.training.ssd import backbone_of, build_model, export_onnx
 from renderloop.perception.training.validate import coco_map
 
@@ -104,7 +105,11 @@ def _initial_weights(path: Path, model: torch.nn.Module, backbone: str) -> dict:
     """The model weights of an earlier run's checkpoint, or of a renderloop ONNX detector (the shipped one, say):
     fine-tuning on a grown or new dataset starts there."""
     if path.suffix == ".onnx":
-        built_on = backbone_of(onnx_metadata(path).get("renderloop_detector", ""))
+        metadata = onnx_metadata(path)
+        if QUANTIZED in metadata:
+            raise UserError(f"--init {path}: quantized ({metadata[QUANTIZED]}), its float weights are gone; "
+                            "fine-tune the float model it was made from")
+        built_on = backbone_of(metadata.get("renderloop_detector", ""))
         if built_on is not None and built_on != backbone:
             raise UserError(f"--init {path}: a detector on {built_on}; train it with --backbone {built_on}")
         return weights_from_onnx(path, model)
