@@ -6,13 +6,16 @@ logging included) over the first --seconds of the scan; one control tick split i
 its controller (Flight.tick with its physics steps made no-ops, at states met
 along that flight) and its physics (the same states, stepped); and the whole
 `renderloop fly` process on the whole scan (interpreter start, imports, flight,
-flight.csv, groundtruth.txt and plots), the figure issue 23 asks to be at least 100x.
+flight.csv, groundtruth.txt and plots), the figure issue 23 asks to be at least 100x, and
+its parts: the interpreter's start and its imports, reading the trajectory, the flight,
+writing flight.csv and drawing the two figures.
 The compiled controller's cache is warm by then (the flights in this process fill it;
 a first flight after an install or an edit of robot/kernel.py compiles it, seconds).
 Reference: 1x real time (Gazebo/RotorS runs at about 1x). Median over repeats, with
 min and max.
 
-    .venv/bin/python benchmarks/fly.py [--repeats 3] [--seconds 60] [--process-repeats 3] [--json out.json]
+    .venv/bin/python benchmarks/fly.py [--repeats 3] [--seconds 60] [--process-repeats 3] [--name fly_speed]
+        [--json out.json]
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from common import summary
+from common import save_result, summary
 
 import renderloop.sim.flight as flight_module
 from renderloop.config import Config, load_config
@@ -44,6 +47,41 @@ from renderloop.sim.flight import Flight, Reference, fly, resample
 
 STATE_EVERY_S = 2.0  # the controller is timed at the flight's state every this many simulated seconds
 TICKS_PER_STATE = 20
+
+# `renderloop fly RUN_DIR --force` in a process of its own, each part timed where the fly stage calls it (a part
+# called twice counts twice); last it prints when its imports were done (epoch seconds, for the parent to count the
+# interpreter's start in) and the parts' seconds, as JSON.
+TIMED_FLY = """
+import json, sys, time
+
+import renderloop.cli
+import renderloop.sim.stage as stage
+
+imported, parts = time.time(), {}
+
+
+def timed(part, function):
+    def call(*args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return function(*args, **kwargs)
+        finally:
+            parts[part] = parts.get(part, 0.0) + time.perf_counter() - start
+    return call
+
+
+stage.files.read_trajectory = timed("trajectory", stage.files.read_trajectory)
+stage.fly_in_corridor = timed("flight", stage.fly_in_corridor)
+stage.files.write_flight = timed("flight_csv", stage.files.write_flight)
+stage.draw_flight_paths = timed("figures", stage.draw_flight_paths)
+stage.draw_tracking_error = timed("figures", stage.draw_tracking_error)
+sys.argv = ["renderloop", "fly", sys.argv[1], "--force"]
+try:
+    renderloop.cli.main()
+finally:
+    print(json.dumps({"imported": imported, **parts}))
+"""
+PARTS = ("imports", "trajectory", "flight", "flight_csv", "figures")
 
 
 def physics_only(model: mujoco.MjModel, hover_ctrl: float, seconds: float) -> float:
@@ -118,21 +156,28 @@ def tick_split(model: mujoco.MjModel, config: Config, reference: Reference, stat
     return controller / count * 1e6, physics / count * 1e6
 
 
-def whole_process(run_dir: Path) -> tuple[float, float]:
-    """`renderloop fly RUN_DIR --force` as a child process: (simulated seconds, wall seconds)."""
-    start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "renderloop", "fly", str(run_dir), "--force"], check=True, stdout=subprocess.DEVNULL)
+def whole_process(run_dir: Path) -> dict[str, float]:
+    """`renderloop fly RUN_DIR --force` as a child process: its simulated and wall seconds, and the seconds of each of
+    PARTS (`imports`: from the process's start until its imports are done)."""
+    started, start = time.time(), time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", TIMED_FLY, str(run_dir)], check=True, capture_output=True, text=True).stdout
     wall = time.perf_counter() - start
-    return float(read_csv(run_dir / "flight.csv", FLIGHT_HEADER)[-1, 0]), wall
+    parts = json.loads(out.splitlines()[-1])
+    simulated = float(read_csv(run_dir / "flight.csv", FLIGHT_HEADER)[-1, 0])
+    return {"simulated": simulated, "wall": wall, "imports": parts.pop("imported") - started, **parts}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--seconds", type=float, default=60.0, help="simulated seconds per repeat of the closed loop")
-    parser.add_argument("--process-repeats", type=int, default=3, help="runs of the whole `renderloop fly`; 0 skips them")
-    parser.add_argument("--json", type=Path)
+    parser.add_argument("--process-repeats", type=int, default=3, help="runs of the whole `renderloop fly`")
+    parser.add_argument("--name", default="fly_speed", help="Results file: benchmarks/results/NAME.json.")
+    # benchmarks/run.py reads every measurement from here; its short runs must not replace the docs' figures
+    parser.add_argument("--json", type=Path, help="write every measurement here instead of the results file")
     args = parser.parse_args()
+    if args.process_repeats < 1:
+        parser.error("--process-repeats must be at least 1: the results hold the process's figures")
     os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})  # one core, the child processes' too
 
     config = load_config("paper", seed=7)
@@ -166,23 +211,40 @@ def main() -> None:
         "simulated_seconds": float(reference.t[-1]),
         "physics_steps_per_control_tick": steps_per_control,
         "controller_states_timed": len(states),
+        "process_real_time_factor": summary([run["simulated"] / run["wall"] for run in process]),
+        "process_wall_s": summary([run["wall"] for run in process]),
+        "process_simulated_seconds": process[0]["simulated"],
+        "process_parts_s": {part: summary([run[part] for run in process]) for part in PARTS},
     }
-    if process:
-        results["process_real_time_factor"] = summary([simulated / wall for simulated, wall in process])
-        results["process_wall_s"] = summary([wall for _, wall in process])
-        results["process_simulated_seconds"] = process[0][0]
     print(f"fly benchmark, paper preset, one core, {args.repeats} repeats of {reference.t[-1]:.0f} s simulated")
     print(f"{'figure':<44}{'median':>12}{'min':>12}{'max':>12}")
     names = ["physics_steps_per_s", "physics_real_time_factor", "closed_loop_physics_steps_per_s", "closed_loop_real_time_factor",
              "controller_us_per_tick", "physics_us_per_tick"]
-    for name in names + (["process_wall_s", "process_real_time_factor"] if process else []):
-        row = results[name]
-        print(f"{name:<44}{row['median']:>12.1f}{row['min']:>12.1f}{row['max']:>12.1f}")
-    if process:
-        print(f"(process: `renderloop fly` on the whole {results['process_simulated_seconds']:.0f} s scan, {len(process)} runs)")
+    parts = results["process_parts_s"]
+    rows = [(name, results[name]) for name in names + ["process_wall_s", "process_real_time_factor"]]
+    for name, row in rows + [(f"process: {part}_s", parts[part]) for part in PARTS]:
+        print(f"{name:<44}{row['median']:>12.2f}{row['min']:>12.2f}{row['max']:>12.2f}")
+    print(f"(process: `renderloop fly` on the whole {results['process_simulated_seconds']:.0f} s scan, {len(process)} runs)")
     print(f"{'reference (Gazebo/RotorS) real-time factor':<44}{1.0:>12.1f}")
     if args.json:
         args.json.write_text(json.dumps(results, indent=1) + "\n")
+        return
+    process_rtf = results["process_real_time_factor"]
+    figures = {  # what docs/stages/fly.md reads, rounded as it shows them
+        "closed_loop_rtf": round(results["closed_loop_real_time_factor"]["median"]),
+        "physics_us_per_tick": round(results["physics_us_per_tick"]["median"]),
+        "controller_us_per_tick": round(results["controller_us_per_tick"]["median"]),
+        "process_rtf": round(process_rtf["median"]),
+        "process_rtf_range": f"{process_rtf['min']:.1f}-{process_rtf['max']:.1f}",
+        "process_s": round(results["process_wall_s"]["median"], 1),
+        "scan_s": round(results["process_simulated_seconds"]),
+        "imports_s": round(parts["imports"]["median"], 1),
+        "trajectory_s": round(parts["trajectory"]["median"], 1),
+        "flight_s": round(parts["flight"]["median"]),
+        "flight_csv_s": round(parts["flight_csv"]["median"], 2),
+        "figures_s": f"{parts['figures']['min']:.1f}-{parts['figures']['max']:.1f}",
+    }
+    print(save_result(args.name, figures))
 
 
 if __name__ == "__main__":

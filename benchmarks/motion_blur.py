@@ -6,20 +6,20 @@ speed limit) and turns 0.3 rad/s for 25 ms (the longest default exposure). Per f
 medians with min and max of: the ideal render (`CyclesRenderer.render`), the blurred one
 (`render_blurred`), and a whole frame of `FrameWorker.render_pose` (PNG encoding included) with
 the sensor off, on for a still camera (the sensor model without blur) and on for the moving one: wall seconds, and the process's CPU seconds (all
-its threads), which other jobs on a shared machine disturb far less.
+its threads), which other jobs on a shared machine disturb far less; and the scene's re-sync
+(Cycles' `synchronization_time`, its least and most over the frames of both sizes) before a
+blurred frame's still render, which follows the previous frame's blurred one. The docs show the
+CPU seconds of the whole frames.
 
-    .venv/bin/python benchmarks/motion_blur.py [--repeats 4] [--json out.json]
+    .venv/bin/python benchmarks/motion_blur.py [--repeats 4] [--name render_motion_blur]
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import time
-from pathlib import Path
 
 import numpy as np
-from common import scan_poses, summary
+from common import save_result, scan_poses, summary, timed
 
 from renderloop.config import load_config
 from renderloop.render.executor import FrameWorker
@@ -38,41 +38,37 @@ def shutter(pose: np.ndarray) -> np.ndarray:
     return np.array(poses)
 
 
-def timed(call) -> tuple[float, float]:
-    """Wall and CPU seconds of `call()`."""
-    wall, cpu = time.perf_counter(), time.process_time()
-    call()
-    return time.perf_counter() - wall, time.process_time() - cpu
-
-
 def measure(config, scene, poses: list[np.ndarray]) -> dict[str, dict[str, float]]:
+    """Summaries of wall and CPU seconds a frame (`NAME_s`, `NAME_cpu_s`), and of the re-sync (`resync_s`)."""
     sensor_on = config.override({"camera": {"sensor": {"enabled": True}}})
     worker = FrameWorker(sensor_on, scene)  # the demo preset's backend: Cycles
     try:
         renderer = worker.renderer
         renderer.render(poses[0])  # the first frame also syncs the scene
         renderer.render_blurred(*shutter(poses[0]))  # and the first blurred one the motion settings
-        ideal = [timed(lambda: renderer.render(pose)) for pose in poses]
-        blurred = [timed(lambda: renderer.render_blurred(*shutter(pose))) for pose in poses]
-        frame_on = [timed(lambda: worker.render_pose(0, pose, shutter(pose))) for pose in poses]
-        frame_still = [timed(lambda: worker.render_pose(0, pose)) for pose in poses]
+        ideal = [timed(renderer.render, pose) for pose in poses]
+        blurred = [timed(renderer.render_blurred, *shutter(pose)) for pose in poses]
+        frame_on = [timed(worker.render_pose, 0, pose, shutter(pose)) for pose in poses]
+        frame_still = [timed(worker.render_pose, 0, pose) for pose in poses]
         worker.config = config  # the same renderer, the sensor off
-        frame_off = [timed(lambda: worker.render_pose(0, pose)) for pose in poses]
+        frame_off = [timed(worker.render_pose, 0, pose) for pose in poses]
     finally:
         worker.close()
     figures = {"ideal_render": ideal, "blurred_render": blurred, "frame_sensor_off": frame_off,
                "frame_sensor_still": frame_still, "frame_sensor_blurred": frame_on}
     results = {}
     for name, times in figures.items():
-        results[f"{name}_s"] = summary([wall for wall, _ in times])
-        results[f"{name}_cpu_s"] = summary([cpu for _, cpu in times])
+        results[f"{name}_s"] = summary([wall for _, wall, _ in times])
+        results[f"{name}_cpu_s"] = summary([cpu for *_, cpu in times])
+    # render_pose's timings are its still render's: in a blurred frame it follows the previous frame's blurred render
+    results["resync_s"] = summary([timings["synchronization_time"] for (_, _, timings), _, _ in frame_on])
     return results
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=4)
-    parser.add_argument("--json", type=Path)
+    parser.add_argument("--name", default="render_motion_blur", help="Results file: benchmarks/results/NAME.json.")
     args = parser.parse_args()
     paper = load_config("paper", seed=7)
     scene = generate_scene(paper)
@@ -87,8 +83,17 @@ def main() -> None:
     for size, figures in results.items():
         for name, value in figures.items():
             print(f"{size:<10}{name:<26}{value['median']:>10.3f}{value['min']:>10.3f}{value['max']:>10.3f}")
-    if args.json:
-        args.json.write_text(json.dumps(results, indent=1) + "\n")
+    columns = {"frame_sensor_off_cpu_s": "sensor off", "frame_sensor_still_cpu_s": "sensor on, at rest",
+               "frame_sensor_blurred_cpu_s": "sensor on, motion blur"}
+    blur_factors = [figures["frame_sensor_blurred_cpu_s"]["median"] / figures["frame_sensor_off_cpu_s"]["median"]
+                    for figures in results.values()]
+    print(save_result(args.name, {
+        "table": {"columns": ["frame size", *columns.values()],
+                  "rows": [[size, *(round(figures[key]["median"], 2) for key in columns)] for size, figures in results.items()]},
+        "blur_factor_min": round(min(blur_factors), 1), "blur_factor_max": round(max(blur_factors), 1),
+        "resync_min_s": round(min(figures["resync_s"]["min"] for figures in results.values()), 1),
+        "resync_max_s": round(max(figures["resync_s"]["max"] for figures in results.values()), 1),
+    }))
 
 
 if __name__ == "__main__":
