@@ -24,7 +24,8 @@ from renderloop.render.camera import Intrinsics
 from renderloop.robot.kinematics import look_at
 
 
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS_FOLDER = "RENDERLOOP_BENCHMARK_RESULTS"  # environment: another folder for save_result (run.py reads its children's)
+RESULTS = Path(os.environ.get(RESULTS_FOLDER) or Path(__file__).resolve().parent / "results")
 
 
 def machine() -> str:
@@ -60,7 +61,8 @@ def as_table(records: list[dict], columns: dict[str, str]) -> dict:
 
 
 def save_result(name: str, figures: dict, command: str | None = None) -> Path:
-    """Write `benchmarks/results/NAME.json`: the figures with the date, machine, commit and command that measured them.
+    """Write `benchmarks/results/NAME.json` (or NAME.json in $RENDERLOOP_BENCHMARK_RESULTS): the figures with the date,
+    machine, commit and command that measured them.
 
     The docs render their tables from these files (docs/hooks/results.py), so a figure is measured
     once and shown from one place. `command` defaults to how this process was started.
