@@ -66,7 +66,7 @@ def test_quantizing_refuses_in_one_line_and_touches_nothing(quantized, tiny_data
     path, _ = quantized
     mine = tmp_path / "mine.onnx"
     mine.write_bytes(b"a user's file")
-    cases = [(["quantize", "shipped", str(tiny_dataset), "--out", str(mine)], f"--out {mine}: exists; give another --out"),
+    cases = [(["quantize", "shipped", str(tiny_dataset), "--out", str(mine)], f"--out {mine}: exists; give another --out, or --force to replace it"),
              (["quantize", str(path), str(tiny_dataset), "--out", str(tmp_path / "twice.onnx")], f"{path}: already quantized"),
              (["train", str(tiny_dataset), "--init", str(path), "--out", str(tmp_path / "tuned.onnx")],
               f"--init {path}: quantized (int8, the test's frames), its float weights are gone; fine-tune the float "
@@ -76,3 +76,14 @@ def test_quantizing_refuses_in_one_line_and_touches_nothing(quantized, tiny_data
         assert code == 2 and stderr.strip().splitlines() == [f"renderloop: error: {message}"]
     assert mine.read_bytes() == b"a user's file"
     assert sorted(item.name for item in tmp_path.iterdir()) == ["mine.onnx"]
+
+
+def test_quantize_force_replaces_the_file_at_out_with_the_int8_model(tiny_dataset: Path, tmp_path: Path, monkeypatch,
+                                                                      capsys):
+    out = tmp_path / "int8.onnx"
+    out.write_bytes(b"an older model")
+    code, stdout, _ = cli(monkeypatch, capsys, "quantize", "shipped", str(tiny_dataset), "--out", str(out), "--images", "4",
+                          "--force")
+    assert code == 0 and stdout.strip() == f"quantize: wrote {out}"
+    assert onnx_metadata(out)["quantized"] == "int8, 4 calibration renders drawn with seed 0"
+    assert Detector(out).input_size == Detector().input_size

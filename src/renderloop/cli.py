@@ -349,6 +349,7 @@ def quantize(
     out: Annotated[Path, typer.Option(help="The int8 ONNX model to write.", show_default=False)],
     images: Annotated[int, typer.Option(min=1, max=100_000, help="Calibration renders.")] = 64,
     seed: Annotated[int, typer.Option(help="Seed of the calibration renders' draw.")] = 0,
+    force: Annotated[bool, typer.Option("--force", help="Replace --out if it exists.")] = False,
 ) -> None:
     """Quantize a detector to int8 for ONNX Runtime's integer kernels, calibrated on renders (docs/stages/perception.md)."""
     from renderloop.perception.detector import shipped_model
@@ -357,7 +358,7 @@ def quantize(
         from renderloop.perception.training.quantize import quantize_on_renders
     except ImportError as error:
         raise _train_extra("quantizing", error) from None
-    made = quantize_on_renders(shipped_model() if str(model) == "shipped" else model, dataset_dirs, out, images, seed)
+    made = quantize_on_renders(shipped_model() if str(model) == "shipped" else model, dataset_dirs, out, images, seed, force)
     typer.echo(f"quantize: wrote {made}")
 
 

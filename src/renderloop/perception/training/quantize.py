@@ -50,9 +50,10 @@ def calibration_images(datasets: list[Path], count: int, seed: int) -> list[Path
     return [files[index] for index in chosen]
 
 
-def quantize_detector(model: Path, frames: Sequence[np.ndarray], out: Path, calibration: str) -> Path:
-    """Write `model` quantized to int8 at `out`, each tensor's range measured on `frames` ((H, W, 3) uint8 RGB, as
-    the detector is given them), which `calibration` says in words in the model's metadata."""
+def quantize_detector(model: Path, frames: Sequence[np.ndarray], out: Path, calibration: str, force: bool = False) -> Path:
+    """Write `model` quantized to int8 at `out` (replacing a file there only with `force`), each tensor's range
+    measured on `frames` ((H, W, 3) uint8 RGB, as the detector is given them), which `calibration` says in words in
+    the model's metadata."""
     import onnx
     from onnxruntime.quantization import CalibrationDataReader, QuantFormat, QuantType, quantize_static
     from onnxruntime.quantization.shape_inference import quant_pre_process
@@ -60,8 +61,8 @@ def quantize_detector(model: Path, frames: Sequence[np.ndarray], out: Path, cali
     model, out = Path(model), Path(out)
     if out.suffix != ".onnx":
         raise UserError(f"--out {out}: the model file must end in .onnx")
-    if out.exists():
-        raise UserError(f"--out {out}: exists; give another --out")
+    if out.exists() and not force:
+        raise UserError(f"--out {out}: exists; give another --out, or --force to replace it")
     size = Detector(model).input_size  # a file that is not a renderloop detector is refused here, in one line
     if is_quantized(model):
         raise UserError(f"{model}: already quantized")
@@ -89,8 +90,9 @@ def quantize_detector(model: Path, frames: Sequence[np.ndarray], out: Path, cali
     return out
 
 
-def quantize_on_renders(model: Path, datasets: list[Path], out: Path, images: int = 64, seed: int = 0) -> Path:
+def quantize_on_renders(model: Path, datasets: list[Path], out: Path, images: int = 64, seed: int = 0,
+                        force: bool = False) -> Path:
     """`quantize_detector` calibrated on `images` renders drawn with `seed` from `datasets`' training splits."""
     chosen = calibration_images(datasets, images, seed)
     frames = [np.asarray(open_image(path, "RGB")) for path in chosen]
-    return quantize_detector(model, frames, out, f"{len(chosen)} calibration renders drawn with seed {seed}")
+    return quantize_detector(model, frames, out, f"{len(chosen)} calibration renders drawn with seed {seed}", force)
