@@ -66,8 +66,10 @@ def test_quantizing_refuses_in_one_line_and_touches_nothing(quantized, tiny_data
     path, _ = quantized
     mine = tmp_path / "mine.onnx"
     mine.write_bytes(b"a user's file")
-    cases = [(["quantize", "shipped", str(tiny_dataset), "--out", str(mine)], f"--out {mine}: exists; give another --out, or --force to replace it"),
-             (["quantize", str(path), str(tiny_dataset), "--out", str(tmp_path / "twice.onnx")], f"{path}: already quantized"),
+    cases = [(["quantize", "shipped", str(tiny_dataset), "--out", str(mine)],
+              f"--out {mine}: exists; give another --out, or --force to replace it"),
+             (["quantize", str(path), str(tiny_dataset), "--out", str(tmp_path / "twice.onnx")],
+              f"{path}: already quantized"),
              (["train", str(tiny_dataset), "--init", str(path), "--out", str(tmp_path / "tuned.onnx")],
               f"--init {path}: quantized (int8, the test's frames), its float weights are gone; fine-tune the float "
               "model it was made from")]

@@ -24,6 +24,7 @@ from renderloop.errors import UserError
 from renderloop.io.atomic import atomic_path
 from renderloop.io.images import open_image
 from renderloop.perception.detector import Detector, to_input
+from renderloop.perception.training.from_onnx import onnx_metadata
 
 __all__ = ["QUANTIZED", "calibration_images", "is_quantized", "quantize_detector", "quantize_on_renders"]
 
@@ -32,8 +33,6 @@ QUANTIZED = "quantized"  # the metadata key a quantized model carries: how it wa
 
 def is_quantized(path: Path) -> bool:
     """Whether the renderloop ONNX model at `path` was made by `quantize_detector`."""
-    from renderloop.perception.training.from_onnx import onnx_metadata
-
     return QUANTIZED in onnx_metadata(path)
 
 
@@ -81,9 +80,8 @@ def quantize_detector(model: Path, frames: Sequence[np.ndarray], out: Path, cali
         quantize_static(str(prepared), str(tmp), Inputs(), quant_format=QuantFormat.QOperator, per_channel=True,
                         activation_type=QuantType.QUInt8, weight_type=QuantType.QInt8)
         graph = onnx.load(str(tmp))
-        kept = {entry.key: entry.value for entry in onnx.load(str(model), load_external_data=False).metadata_props}
         del graph.metadata_props[:]  # the float model's, without what the quantizer's own passes added
-        for key, value in {**kept, QUANTIZED: f"int8, {calibration}"}.items():
+        for key, value in {**onnx_metadata(model), QUANTIZED: f"int8, {calibration}"}.items():
             graph.metadata_props.add(key=key, value=value)
         onnx.save(graph, str(tmp))
         Detector(tmp)  # the contract holds on the quantized graph too (a grey frame's outputs are probabilities)
