@@ -13,6 +13,7 @@ from matplotlib import cbook
 from PIL import Image
 
 from conftest import cli, jittered_model
+from renderloop.config.training import LITE0_LAYERS
 from renderloop.errors import UserError
 from renderloop.perception.training import backbones
 from renderloop.perception.training.backbones import lite0_checkpoint, lite0_features, lite0_state, load_lite0
@@ -137,3 +138,16 @@ def test_a_detector_from_random_weights_has_no_layers_to_keep_and_freezes_none()
     assert backbones.frozen_layers(model, 6) == [] and all(p.requires_grad for p in model.parameters())
     lite0 = build_model("efficientnet-lite0", pretrained=False)
     assert len(backbones.frozen_layers(lite0, 6)) == 6
+
+
+def test_the_whole_backbone_can_be_frozen_and_then_only_the_new_layers_learn():
+    assert LITE0_LAYERS == len(lite0_features())  # the config's bound, which cannot import torch, is the network's
+    model = build_model("efficientnet-lite0", pretrained=False)
+    frozen = backbones.frozen_layers(model, LITE0_LAYERS)
+    assert all(not p.requires_grad for p in model.backbone.features.parameters())
+    assert all(p.requires_grad for p in model.backbone.extra.parameters()) and all(p.requires_grad for p in model.head.parameters())
+    # the block SSDlite splits at its stride-16 tap is frozen in both halves, and counted once
+    assert sum(1 for layer in frozen for _ in layer.parameters()) == sum(1 for _ in lite0_features().parameters())
+    one_short = build_model("efficientnet-lite0", pretrained=False)
+    backbones.frozen_layers(one_short, LITE0_LAYERS - 1)
+    assert all(p.requires_grad for p in one_short.backbone.features[1][-1].parameters())  # the head learns

@@ -301,6 +301,7 @@ def train(
     warmup_steps: Annotated[int | None, _setting("warmup_steps")] = None,
     seed: Annotated[int | None, _setting("seed")] = None,
     frozen_layers: Annotated[int | None, _setting("frozen_layers")] = None,
+    cached_copies: Annotated[int | None, _setting("cached_copies")] = None,
     device: Annotated[str, Choice(TRAIN_DEVICES, "Where to train; auto: cuda when there is one.")] = "auto",
     loader_workers: Annotated[int, typer.Option(min=0, max=64, help="Data-loading processes.")] = 1,
     init: Annotated[Path | None, typer.Option(help="Start from these weights (fine-tuning): an earlier run's .ckpt, a "
@@ -331,7 +332,8 @@ def train(
     if backbone is None and init is not None:
         backbone = backbone_of_init(init)
     given = {"epochs": epochs, "batch_size": batch_size, "learning_rate": learning_rate, "warmup_steps": warmup_steps,
-             "seed": seed, "backbone": backbone, "frozen_layers": frozen_layers, "train_size": train_size}
+             "seed": seed, "backbone": backbone, "frozen_layers": frozen_layers,
+             "cached_copies": cached_copies, "train_size": train_size}
     settings = checked(TrainSettings, "train", **{name: value for name, value in given.items() if value is not None})
     own = Photos(photos, coco, photo_class) if photos is not None else None
     record = train_detector(dataset_dirs or [], out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True),

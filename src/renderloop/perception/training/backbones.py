@@ -26,7 +26,7 @@ import torch
 from torch import nn
 from torch.nn import functional
 
-from renderloop.config.training import EFFICIENTNET_LITE0, MOBILENET_V3
+from renderloop.config.training import EFFICIENTNET_LITE0, LITE0_LAYERS, MOBILENET_V3
 from renderloop.errors import UserError
 from renderloop.perception.training.torch_support import import_torchvision
 
@@ -44,6 +44,9 @@ NORM = partial(nn.BatchNorm2d, eps=0.001, momentum=0.03)
 LITE0_STAGES = [(3, 1, 1, 16, 1), (3, 2, 6, 24, 2), (5, 2, 6, 40, 2), (3, 2, 6, 80, 3), (5, 1, 6, 112, 3),
                 (5, 2, 6, 192, 4), (3, 1, 6, 320, 1)]
 LITE0_STEM, LITE0_HEAD = 32, 1280
+# The first block of the stride-32 stage (features[12], after the stem and five stages): SSDlite's stride-16 tap is its
+# expansion.
+STRIDE_16_BLOCK = 1 + sum(stage[-1] for stage in LITE0_STAGES[:5])
 
 
 class SamePadConv2d(nn.Conv2d):
@@ -158,14 +161,18 @@ def load_lite0(features: nn.Sequential, path: Path | None = None) -> nn.Linear:
 
 
 def frozen_layers(model: nn.Module, count: int) -> list[nn.Module]:
-    """Freeze the first `count` layers of a detector's EfficientNet-Lite0 (stem, then blocks: 6 reach stride 8) and
-    return them; the training loop keeps them in eval mode so that their batch norms keep ImageNet's statistics.
-    Freezing the early layers of a pretrained extractor is what lets a detector trained on renders only keep
-    real-image features (Hinterstoisser et al. 2018), and their backward pass is much of a CPU step's cost.
-    A detector over `mobilenet-v3` starts from random weights: it has nothing to keep, and none are frozen."""
+    """Freeze the first `count` layers of a detector's EfficientNet-Lite0 (stem, 16 blocks, head: 6 reach stride 8,
+    LITE0_LAYERS the whole network) and return them; the training loop keeps them in eval mode so that their batch
+    norms keep ImageNet's statistics. Freezing the early layers of a pretrained extractor is what lets a detector
+    trained on renders only keep real-image features (Hinterstoisser et al. 2018), and their backward pass is much of
+    a CPU step's cost. A detector over `mobilenet-v3` starts from random weights: it has nothing to keep, and none
+    are frozen."""
     if model.renderloop_backbone == MOBILENET_V3:
         return []
-    layers = list(model.backbone.features[0])[:count]  # SSDlite's first part: the network up to the stride-16 tap
+    # SSDlite splits the network at its stride-16 tap, inside the first stride-32 block (STRIDE_16_BLOCK): part one
+    # ends with that block's expansion, part two begins with the rest of it. Freezing that block freezes both halves.
+    first, second = model.backbone.features[0], model.backbone.features[1]
+    layers = list(first)[:min(count, STRIDE_16_BLOCK + 1)] + list(second)[:max(0, count - STRIDE_16_BLOCK)]
     for layer in layers:
         layer.requires_grad_(False)
     return layers
@@ -177,5 +184,4 @@ def lite0_extractor(pretrained: bool = True) -> nn.Module:
     _normal_init(features)
     if pretrained:
         load_lite0(features)
-    stride_32 = [i for i, layer in enumerate(features) if getattr(layer, "_is_cn", False)][-1]
-    return SSDLiteFeatureExtractorMobileNet(features, stride_32, NORM)
+    return SSDLiteFeatureExtractorMobileNet(features, STRIDE_16_BLOCK, NORM)

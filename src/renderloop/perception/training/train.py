@@ -31,6 +31,7 @@ from renderloop.io.atomic import atomic_path, write_json
 from renderloop.perception.detector import CLASSES
 from renderloop.perception.training.backbones import frozen_layers
 from renderloop.perception.training.data import PepperBoxes, PhotoBoxes, collate
+from renderloop.perception.training.feature_cache import StrideSixteenMaps, loss_from_maps
 from renderloop.perception.training.from_onnx import freeze_batch_norms, onnx_metadata, weights_from_onnx
 from renderloop.perception.training.quantize import QUANTIZED
 from renderloop.perception.training.ssd import backbone_of, build_model, export_onnx
@@ -189,6 +190,10 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
         model.load_state_dict(_initial_weights(Path(init), model, settings.backbone))
     frozen = frozen_layers(model, settings.frozen_layers)
     model = model.to(run_device, memory_format=MEMORY_FORMAT)
+    cache = None
+    if settings.cached_copies:  # built before a resumed run's state is restored: its own draws, the same maps again
+        cache = StrideSixteenMaps(model, train_set, settings.cached_copies, settings.seed, run_device, workers)
+        log(f"cached {len(cache.maps)} stride-16 maps of {len(train_set)} images ({cache.maps.numel() * 2 / 2**30:.1f} GiB)")
     optimizer = torch.optim.AdamW(_parameter_groups(model, settings), lr=settings.learning_rate, weight_decay=settings.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _schedule(settings, len(loader)))
     schedule = settings.model_dump(exclude={"max_steps"})  # what a resumed run must share
@@ -198,7 +203,9 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
     start_epoch = 0
     if checkpoint_path.is_file():
         state = _load_checkpoint(checkpoint_path, run_device)
-        if state["record"]["settings"] != record["settings"] or state["record"]["train_images"] != len(train_set):
+        recorded = {**TrainSettings().model_dump(exclude={"max_steps"}), **state["record"]["settings"]}  # a field
+        # newer than the checkpoint had its default then
+        if recorded != record["settings"] or state["record"]["train_images"] != len(train_set):
             raise UserError(f"{checkpoint_path}: a checkpoint of other settings or data; delete it to start over")
         model.load_state_dict(state["model"])
         optimizer.load_state_dict(state["optimizer"])
@@ -216,10 +223,18 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
         if frozen_norms:
             freeze_batch_norms(model)
         began, seen, losses = time.perf_counter(), 0, []
-        for images, targets in _batches(loader):
-            images = [image.to(run_device) for image in images]
+        if cache is None:
+            batches = _batches(loader)
+        else:  # the same number of batches an epoch as the loader's, in an order drawn from its generator
+            order = torch.randperm(len(train_set), generator=loader.generator)
+            batches = cache.epoch(epoch, order, settings.batch_size, loader.drop_last)
+        for images, targets in batches:
             targets = [{"boxes": t["boxes"].to(run_device), "labels": t["labels"].to(run_device)} for t in targets]
-            loss = sum(model(images, targets).values())
+            if cache is None:
+                loss = sum(model([image.to(run_device) for image in images], targets).values())
+            else:
+                maps = images.to(run_device, memory_format=MEMORY_FORMAT)
+                loss = sum(loss_from_maps(model, maps, targets, cache.input_size).values())
             if not torch.isfinite(loss):
                 raise RuntimeError(f"training diverged at epoch {epoch + 1} (loss {float(loss)})")
             optimizer.zero_grad(set_to_none=True)

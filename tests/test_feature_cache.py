@@ -1,0 +1,85 @@
+"""Training on cached stride-16 maps: the same losses as the whole network, the same maps on resuming, refused where
+the layers before the tap still learn."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import torch
+
+from conftest import cli
+from renderloop.config.training import CACHE_FROM
+from renderloop.perception.training.backbones import STRIDE_16_BLOCK, frozen_layers
+from renderloop.perception.training.data import PepperBoxes, collate
+from renderloop.perception.training.feature_cache import StrideSixteenMaps, loss_from_maps
+from renderloop.perception.training.ssd import build_model
+from renderloop.perception.training.train import MEMORY_FORMAT, TrainSettings, train_detector
+
+
+def test_the_cache_starts_where_the_frozen_part_of_the_network_ends():
+    assert CACHE_FROM == STRIDE_16_BLOCK + 1  # the config's bound, which cannot import torch, is the network's
+
+
+def test_the_loss_from_cached_maps_is_the_loss_of_the_whole_network(tiny_dataset: Path):
+    torch.manual_seed(0)
+    model = build_model("efficientnet-lite0", pretrained=False)
+    for layer in frozen_layers(model, CACHE_FROM):
+        layer.eval()
+    model = model.to(memory_format=MEMORY_FORMAT).train()
+    model.backbone.features[0].eval()
+    images, targets = collate([PepperBoxes(tiny_dataset, "train", augment=False)[i] for i in range(4)])
+    targets = [{"boxes": t["boxes"], "labels": t["labels"]} for t in targets]
+    whole = model(images, targets)
+    batch, resized = model.transform(images, targets)
+    with torch.no_grad():
+        maps = model.backbone.features[0](batch.tensors.contiguous(memory_format=MEMORY_FORMAT))
+    cached = loss_from_maps(model, maps, resized, (320, 320))
+    assert whole.keys() == cached.keys()
+    for name in whole:
+        assert cached[name].item() == pytest.approx(whole[name].item(), rel=1e-4), name
+    # and it learns: the loss carries gradients to the layers after the tap, none to those before
+    sum(cached.values()).backward()
+    assert model.head.classification_head.module_list[0][1].weight.grad is not None
+    assert all(p.grad is None for p in model.backbone.features[0].parameters())
+
+
+def test_each_epoch_draws_one_copy_of_every_image_and_the_same_seed_draws_the_same_copies(tiny_dataset: Path):
+    model = build_model("efficientnet-lite0")  # ImageNet's layers: random ones fade to zeros by stride 16
+    frozen_layers(model, CACHE_FROM)
+    train = PepperBoxes(tiny_dataset, "train", augment=True)
+    cache = StrideSixteenMaps(model, train, copies=2, seed=5, device=torch.device("cpu"), workers=0)
+    again = StrideSixteenMaps(model, train, copies=2, seed=5, device=torch.device("cpu"), workers=0)
+    assert cache.maps.shape == (16, 672, 20, 20) and cache.maps.dtype == torch.float16
+    assert torch.equal(cache.maps, again.maps)
+    assert not torch.equal(cache.maps[:8], cache.maps[8:])  # two augmentation draws of each image
+    order = torch.arange(8)
+    for epoch in (0, 1, 2):
+        batches = list(cache.epoch(epoch, order, batch_size=3, drop_last=True))
+        assert [len(maps) for maps, _ in batches] == [3, 3]  # as the loader's drop_last
+        first_copy = (epoch % 2) * 8
+        assert torch.equal(batches[0][0], cache.maps[first_copy:first_copy + 3].float())
+
+
+def test_a_cached_run_resumed_after_its_first_epoch_ends_as_an_unbroken_one(tiny_dataset: Path, tmp_path: Path):
+    settings = TrainSettings(epochs=2, batch_size=4, warmup_steps=1, frozen_layers=CACHE_FROM, cached_copies=2)
+    whole = train_detector(tiny_dataset, tmp_path / "whole.onnx", settings, device="cpu", workers=0, log=lambda _: None)
+    first = TrainSettings(**{**settings.model_dump(), "max_steps": 2})  # two steps: the first epoch
+    train_detector(tiny_dataset, tmp_path / "broken.onnx", first, device="cpu", workers=0, log=lambda _: None)
+    logged = []
+    resumed = train_detector(tiny_dataset, tmp_path / "broken.onnx", settings, device="cpu", workers=0, log=logged.append)
+    assert any(line.startswith("resuming after epoch 1") for line in logged)
+    assert [e["loss"] for e in resumed["history"]] == pytest.approx([e["loss"] for e in whole["history"]], rel=1e-5)
+    a = torch.load(tmp_path / "whole.ckpt", weights_only=True)["model"]
+    b = torch.load(tmp_path / "broken.ckpt", weights_only=True)["model"]
+    assert all(torch.allclose(a[key].float(), b[key].float(), atol=1e-6) for key in a)
+
+
+def test_a_cache_before_the_layers_it_holds_are_frozen_is_refused_in_one_line(tiny_dataset: Path, tmp_path: Path,
+                                                                              monkeypatch, capsys):
+    out = tmp_path / "m.onnx"
+    code, _, err = cli(monkeypatch, capsys, "train", str(tiny_dataset), "--out", str(out), "--cached-copies", "4",
+                       "--frozen-layers", "6")
+    assert code != 0 and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert f"cached_copies needs the efficientnet-lite0 backbone with frozen_layers of at least {CACHE_FROM}" in err
+    assert not out.exists() and not out.with_suffix(".ckpt").exists()
