@@ -12,7 +12,7 @@ classifier only looks: nothing here trains, and no threshold or setting anywhere
     .venv/bin/python benchmarks/pepper_look.py DATASET... [--photos DIR --coco FILE] [--crops 400] [--name pepper_look]
 
 Writes `benchmarks/results/NAME.json`: per source, crops, top-1 and top-5 bell-pepper rate and the classes most often
-named first.
+named first; a dataset whose views went partly through the colour-sensor model (`--sensor`) also apart by that.
 """
 
 from __future__ import annotations
@@ -46,14 +46,15 @@ def crop(picture: Image.Image, box, shrink_to: int | None = None) -> Image.Image
     return part.resize((SIDE, SIDE), Image.BILINEAR)
 
 
-def rendered_boxes(dataset: Path, min_side: float) -> list[tuple[Path, tuple, str]]:
+def rendered_boxes(dataset: Path, min_side: float) -> list[tuple[Path, tuple, str, bool]]:
+    """Each target fruit's image, box, class and whether its view went through the colour-sensor model."""
     found = []
     for path in sorted((dataset / "labels").glob("*.json")):
         label = json.loads(path.read_text())
         for pepper in label["peppers"]:
             x0, y0, x1, y1 = pepper["bbox"]
             if pepper["ignore"] is None and pepper["visible_fraction"] >= VISIBLE and min(x1 - x0, y1 - y0) >= min_side:
-                found.append((dataset / label["image"], (x0, y0, x1, y1), pepper["label"]))
+                found.append((dataset / label["image"], (x0, y0, x1, y1), pepper["label"], bool(label.get("sensor"))))
     return found
 
 
@@ -103,10 +104,13 @@ def main() -> None:
         boxes = rendered_boxes(dataset, args.min_side)
         for label in ("ripe", "unripe"):
             chosen = [boxes[i] for i in rng.permutation(len(boxes)) if boxes[i][2] == label][:args.crops]
-            render_sides += [min(b[2] - b[0], b[3] - b[1]) for _, b, _ in chosen]
-            crops = [crop(open_image(path, "RGB"), box) for path, box, _ in chosen]
-            records.append({"source": f"{dataset.name} renders, {label}", **rates(classifier, crops)})
-            print(records[-1], flush=True)
+            render_sides += [min(b[2] - b[0], b[3] - b[1]) for _, b, _, _ in chosen]
+            for through, part in (("", chosen), (", without the sensor model", [b for b in chosen if not b[3]]),
+                                  (", through the sensor model", [b for b in chosen if b[3]])):
+                if part and (not through or len(part) < len(chosen)):  # a split only where both halves are there
+                    crops = [crop(open_image(path, "RGB"), box) for path, box, _, _ in part]
+                    records.append({"source": f"{dataset.name} renders, {label}{through}", **rates(classifier, crops)})
+                    print(records[-1], flush=True)
     if args.photos is not None:
         labels = read_labels(args.coco, args.photos)
         boxes = [(image.path, tuple(box)) for image in labels.images for box in image.boxes]
