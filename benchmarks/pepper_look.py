@@ -117,7 +117,8 @@ def main() -> None:
         chosen = [boxes[i] for i in rng.permutation(len(boxes))[:args.crops]]
         shrink = rng.choice(render_sides, size=len(chosen)) if render_sides else [None] * len(chosen)
         for case, sides in (("photos at the renders' sizes", shrink), ("photos at their own size", [None] * len(chosen))):
-            crops = [crop(open_image(path, "RGB"), box, None if side is None else int(side)) for (path, box), side in zip(chosen, sides)]
+            crops = [crop(open_image(path, "RGB"), box, None if side is None else int(side))
+                     for (path, box), side in zip(chosen, sides)]
             records.append({"source": case, **rates(classifier, crops)})
             print(records[-1], flush=True)
     columns = {"source": "crops of", "crops": "crops", "top1": "bell pepper, top-1", "top5": "bell pepper, top-5"}

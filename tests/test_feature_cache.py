@@ -83,3 +83,16 @@ def test_a_cache_before_the_layers_it_holds_are_frozen_is_refused_in_one_line(ti
     assert code != 0 and "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert f"cached_copies needs the efficientnet-lite0 backbone with frozen_layers of at least {CACHE_FROM}" in err
     assert not out.exists() and not out.with_suffix(".ckpt").exists()
+
+
+def test_a_checkpoint_from_before_the_cache_existed_resumes_as_a_run_without_one(tiny_dataset: Path, tmp_path: Path):
+    out = tmp_path / "old.onnx"
+    settings = TrainSettings(epochs=2, batch_size=4, warmup_steps=1, backbone="mobilenet-v3")
+    train_detector(tiny_dataset, out, TrainSettings(**{**settings.model_dump(), "max_steps": 2}), device="cpu", workers=0,
+                   log=lambda _: None)
+    state = torch.load(out.with_suffix(".ckpt"), weights_only=True)
+    del state["record"]["settings"]["cached_copies"]  # as a checkpoint written before the setting was
+    torch.save(state, out.with_suffix(".ckpt"))
+    logged = []
+    record = train_detector(tiny_dataset, out, settings, device="cpu", workers=0, log=logged.append)
+    assert logged[0].startswith("resuming after epoch 1") and [e["epoch"] for e in record["history"]] == [1, 2]

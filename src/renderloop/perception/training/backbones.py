@@ -26,7 +26,7 @@ import torch
 from torch import nn
 from torch.nn import functional
 
-from renderloop.config.training import EFFICIENTNET_LITE0, LITE0_LAYERS, MOBILENET_V3
+from renderloop.config.training import EFFICIENTNET_LITE0, MOBILENET_V3
 from renderloop.errors import UserError
 from renderloop.perception.training.torch_support import import_torchvision
 
@@ -162,8 +162,8 @@ def load_lite0(features: nn.Sequential, path: Path | None = None) -> nn.Linear:
 
 def frozen_layers(model: nn.Module, count: int) -> list[nn.Module]:
     """Freeze the first `count` layers of a detector's EfficientNet-Lite0 (stem, 16 blocks, head: 6 reach stride 8,
-    LITE0_LAYERS the whole network) and return them; the training loop keeps them in eval mode so that their batch
-    norms keep ImageNet's statistics. Freezing the early layers of a pretrained extractor is what lets a detector
+    18, `config.training.LITE0_LAYERS`, the whole network) and return them; the training loop keeps them in eval mode
+    so that their batch norms keep ImageNet's statistics. Freezing the early layers of a pretrained extractor is what lets a detector
     trained on renders only keep real-image features (Hinterstoisser et al. 2018), and their backward pass is much of
     a CPU step's cost. A detector over `mobilenet-v3` starts from random weights: it has nothing to keep, and none
     are frozen."""

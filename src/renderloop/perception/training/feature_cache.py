@@ -1,10 +1,10 @@
 """Training on cached stride-16 maps: the frozen first part of the backbone runs once per augmented copy of an image.
 
-With EfficientNet-Lite0 frozen down to SSDlite's stride-16 tap (`frozen_layers` at least `CACHE_FROM`), what that
-part makes of an augmented image never changes while the rest learns, and on a CPU its forward pass is most of a
-training step. `cached_copies` K > 0 augments every training image K times (the same augmentation as always,
-`training.data`), runs each copy through the frozen part once, keeps its stride-16 map in memory (float16, 672
-channels at a sixteenth of the input: 0.54 MB a copy at 320 px), and trains the rest (the stride-32 blocks unless
+With EfficientNet-Lite0 frozen down to SSDlite's stride-16 tap (`frozen_layers` at least
+`config.training.CACHE_FROM`), what that part makes of an augmented image never changes while the rest learns, and on
+a CPU its forward pass is most of a training step. `cached_copies` K > 0 augments every training image K times (the
+same augmentation as always, `training.data`), runs each copy through the frozen part once, keeps its stride-16 map
+in memory (float16, 672 channels at a sixteenth of the input: 0.54 MB a copy at 320 px), and trains the rest (the stride-32 blocks unless
 frozen too, SSDlite's extra blocks and its heads) on those maps: epoch e uses copy e mod K of every image, so an
 epoch is still one pass over the images. What it gives up is a new augmentation draw every epoch: K of them instead.
 
@@ -19,7 +19,6 @@ from collections.abc import Iterator
 import torch
 from torch import nn
 
-from renderloop.config.training import CACHE_FROM
 from renderloop.perception.training.data import collate
 from renderloop.perception.training.torch_support import import_torchvision
 
@@ -38,15 +37,15 @@ class StrideSixteenMaps:
                  device: torch.device, workers: int, batch_size: int = 32) -> None:
         self.images, self.copies = len(dataset), copies
         torch.manual_seed(seed ^ CACHE_STREAM)  # the copies' own draws (workers=0 augments in this process)
-        loader = torch.utils.data.DataLoader(dataset, batch_size=batch_size, shuffle=False, collate_fn=collate,
-                                             num_workers=workers, generator=torch.Generator().manual_seed(seed ^ CACHE_STREAM))
+        loader = torch.utils.data.DataLoader(dataset, batch_size=batch_size, shuffle=False, collate_fn=collate, num_workers=workers,
+                                             generator=torch.Generator().manual_seed(seed ^ CACHE_STREAM))
         first = model.backbone.features[0].eval()
         self.maps, self.targets = None, []
         with torch.no_grad():
             for _ in range(copies):
                 for images, targets in loader:
-                    batch, resized = model.transform([image.to(device) for image in images],
-                                                     [{"boxes": t["boxes"].to(device), "labels": t["labels"].to(device)} for t in targets])
+                    on_device = [{"boxes": t["boxes"].to(device), "labels": t["labels"].to(device)} for t in targets]
+                    batch, resized = model.transform([image.to(device) for image in images], on_device)
                     maps = first(batch.tensors.contiguous(memory_format=torch.channels_last)).to(torch.float16).cpu()
                     if self.maps is None:  # filled in place: a list joined at the end would need twice the memory
                         self.maps = torch.empty((copies * self.images, *maps.shape[1:]), dtype=torch.float16)
@@ -54,7 +53,8 @@ class StrideSixteenMaps:
                     self.targets += [{"boxes": t["boxes"].cpu(), "labels": t["labels"].cpu()} for t in resized]
         self.input_size = tuple(batch.tensors.shape[-2:])
 
-    def epoch(self, epoch: int, order: torch.Tensor, batch_size: int, drop_last: bool) -> Iterator[tuple[torch.Tensor, list]]:
+    def epoch(self, epoch: int, order: torch.Tensor, batch_size: int,
+              drop_last: bool) -> Iterator[tuple[torch.Tensor, list]]:
         """The batches of one epoch: copy epoch mod K of every image, in `order`."""
         offset = (epoch % self.copies) * self.images
         stop = len(order) - len(order) % batch_size if drop_last else len(order)

@@ -5,7 +5,9 @@ weights (`--backbone mobilenet-v3`) or from an earlier model (`--init`). AdamW w
 linear warm-up and a cosine decay over all epochs; the pretrained layers learn at a
 fraction of the rate of the new ones (`backbone_lr_factor`): at the full rate AdamW
 wipes out what they learned on ImageNet within a few hundred steps. The first of
-them (`frozen_layers`, down to stride 8) do not learn at all. After
+them (`frozen_layers`, down to stride 8) do not learn at all; with the network frozen
+down to its stride-16 tap, `cached_copies` trains the rest on cached maps of augmented
+copies (`feature_cache`) instead of running the whole network every step. After
 every epoch a checkpoint (model, optimiser, schedule, history, RNG states) that a
 later `renderloop train` with the same settings resumes from, and COCO mAP on the
 validation split (pycocotools). At the end the model is exported to ONNX and a
@@ -203,8 +205,8 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
     start_epoch = 0
     if checkpoint_path.is_file():
         state = _load_checkpoint(checkpoint_path, run_device)
-        recorded = {**TrainSettings().model_dump(exclude={"max_steps"}), **state["record"]["settings"]}  # a field
-        # newer than the checkpoint had its default then
+        # a checkpoint written before a setting existed trained with its default
+        recorded = {**TrainSettings().model_dump(exclude={"max_steps"}), **state["record"]["settings"]}
         if recorded != record["settings"] or state["record"]["train_images"] != len(train_set):
             raise UserError(f"{checkpoint_path}: a checkpoint of other settings or data; delete it to start over")
         model.load_state_dict(state["model"])
