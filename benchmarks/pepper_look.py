@@ -62,21 +62,18 @@ class Classifier:
     def __init__(self) -> None:
         import torch
 
-        from renderloop.perception.training.backbones import lite0_features, load_lite0
+        from renderloop.perception.training.backbones import imagenet_logits, lite0_features, load_lite0
 
         from torchvision.models import MobileNet_V3_Large_Weights  # after renderloop's torchvision import
 
-        self.torch = torch
+        self.torch, self.logits = torch, imagenet_logits
         self.features = lite0_features().eval()
         self.head = load_lite0(self.features).eval()
         self.names = MobileNet_V3_Large_Weights.IMAGENET1K_V1.meta["categories"]  # ImageNet-1k's, in index order
 
     def top5(self, crops: list[Image.Image]) -> list[list[int]]:
-        torch = self.torch
-        batch = torch.from_numpy(np.stack([np.asarray(c, np.float32) for c in crops])).permute(0, 3, 1, 2)
-        with torch.no_grad():
-            logits = self.head(self.features((batch - 127.0) / 128.0).mean((2, 3)))  # EfficientNet-Lite's input scaling
-        return logits.topk(5, dim=1).indices.tolist()
+        batch = self.torch.from_numpy(np.stack([np.asarray(c, np.float32) for c in crops])).permute(0, 3, 1, 2)
+        return self.logits(self.features, self.head, batch).topk(5, dim=1).indices.tolist()
 
 
 def rates(classifier: Classifier, crops: list[Image.Image]) -> dict:

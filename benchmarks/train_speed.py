@@ -41,7 +41,7 @@ def images_per_second(backbone: str, memory_format, device: str, size: int, step
 
     from renderloop.config.training import TrainSettings
     from renderloop.perception.training.backbones import frozen_layers
-    from renderloop.perception.training.feature_cache import loss_from_maps
+    from renderloop.perception.training.feature_cache import loss_from_maps, stride_sixteen_maps
     from renderloop.perception.training.ssd import build_model
 
     torch.manual_seed(0)
@@ -53,14 +53,12 @@ def images_per_second(backbone: str, memory_format, device: str, size: int, step
     optimizer = torch.optim.AdamW([p for p in model.parameters() if p.requires_grad], lr=1e-4)
     images, targets = batch(size, device)
     if cached:
-        with torch.no_grad():
-            tensors, targets = model.transform(images, targets)
-            maps = model.backbone.features[0](tensors.tensors.contiguous(memory_format=memory_format))
+        maps, targets, input_size = stride_sixteen_maps(model, images, targets, memory_format)
     rates = []
     for step in range(steps + 1):
         start = time.perf_counter()
         if cached:
-            loss = sum(loss_from_maps(model, maps, targets, tuple(tensors.tensors.shape[-2:])).values())
+            loss = sum(loss_from_maps(model, maps, targets, input_size).values())
         else:
             loss = sum(model(images, targets).values())
         optimizer.zero_grad(set_to_none=True)

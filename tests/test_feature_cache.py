@@ -12,7 +12,7 @@ from conftest import cli
 from renderloop.config.training import CACHE_FROM
 from renderloop.perception.training.backbones import STRIDE_16_BLOCK, frozen_layers
 from renderloop.perception.training.data import PepperBoxes, collate
-from renderloop.perception.training.feature_cache import StrideSixteenMaps, loss_from_maps
+from renderloop.perception.training.feature_cache import StrideSixteenMaps, loss_from_maps, stride_sixteen_maps
 from renderloop.perception.training.ssd import build_model
 from renderloop.perception.training.train import MEMORY_FORMAT, TrainSettings, train_detector
 
@@ -31,10 +31,9 @@ def test_the_loss_from_cached_maps_is_the_loss_of_the_whole_network(tiny_dataset
     images, targets = collate([PepperBoxes(tiny_dataset, "train", augment=False)[i] for i in range(4)])
     targets = [{"boxes": t["boxes"], "labels": t["labels"]} for t in targets]
     whole = model(images, targets)
-    batch, resized = model.transform(images, targets)
-    with torch.no_grad():
-        maps = model.backbone.features[0](batch.tensors.contiguous(memory_format=MEMORY_FORMAT))
-    cached = loss_from_maps(model, maps, resized, (320, 320))
+    maps, resized, input_size = stride_sixteen_maps(model, images, targets, MEMORY_FORMAT)
+    assert input_size == (320, 320)
+    cached = loss_from_maps(model, maps, resized, input_size)
     assert whole.keys() == cached.keys()
     for name in whole:
         assert cached[name].item() == pytest.approx(whole[name].item(), rel=1e-4), name
@@ -48,8 +47,10 @@ def test_each_epoch_draws_one_copy_of_every_image_and_the_same_seed_draws_the_sa
     model = build_model("efficientnet-lite0")  # ImageNet's layers: random ones fade to zeros by stride 16
     frozen_layers(model, CACHE_FROM)
     train = PepperBoxes(tiny_dataset, "train", augment=True)
-    cache = StrideSixteenMaps(model, train, copies=2, seed=5, device=torch.device("cpu"), workers=0)
-    again = StrideSixteenMaps(model, train, copies=2, seed=5, device=torch.device("cpu"), workers=0)
+    cache = StrideSixteenMaps(model, train, copies=2, seed=5, device=torch.device("cpu"), workers=0,
+                              memory_format=MEMORY_FORMAT)
+    again = StrideSixteenMaps(model, train, copies=2, seed=5, device=torch.device("cpu"), workers=0,
+                              memory_format=MEMORY_FORMAT)
     assert cache.maps.shape == (16, 672, 20, 20) and cache.maps.dtype == torch.float16
     assert torch.equal(cache.maps, again.maps)
     assert not torch.equal(cache.maps[:8], cache.maps[8:])  # two augmentation draws of each image

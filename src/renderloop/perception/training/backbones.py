@@ -160,6 +160,13 @@ def load_lite0(features: nn.Sequential, path: Path | None = None) -> nn.Linear:
     return classifier
 
 
+@torch.no_grad()
+def imagenet_logits(features: nn.Sequential, classifier: nn.Linear, pictures: torch.Tensor) -> torch.Tensor:
+    """The checkpoint's ImageNet-1k logits for (N, 3, H, W) pictures of 0-255 values: EfficientNet-Lite's input
+    scaling, (x - 127) / 128, the features averaged over the image, its classifier (`load_lite0`'s)."""
+    return classifier(features((pictures.float() - 127.0) / 128.0).mean((2, 3)))
+
+
 def frozen_layers(model: nn.Module, count: int) -> list[nn.Module]:
     """Freeze the first `count` layers of a detector's EfficientNet-Lite0 (stem, 16 blocks, head: 6 reach stride 8,
     18, `config.training.LITE0_LAYERS`, the whole network) and return them; the training loop keeps them in eval mode

@@ -34,24 +34,23 @@ class StrideSixteenMaps:
     float16 and each copy's targets in the network's input pixels, copy k of image i at k * N + i."""
 
     def __init__(self, model: nn.Module, dataset: torch.utils.data.Dataset, copies: int, seed: int,
-                 device: torch.device, workers: int, batch_size: int = 32) -> None:
+                 device: torch.device, workers: int, memory_format: torch.memory_format, batch_size: int = 32) -> None:
         self.images, self.copies = len(dataset), copies
         torch.manual_seed(seed ^ CACHE_STREAM)  # the copies' own draws (workers=0 augments in this process)
         loader = torch.utils.data.DataLoader(dataset, batch_size=batch_size, shuffle=False, collate_fn=collate, num_workers=workers,
                                              generator=torch.Generator().manual_seed(seed ^ CACHE_STREAM))
-        first = model.backbone.features[0].eval()
+        model.backbone.features[0].eval()
         self.maps, self.targets = None, []
-        with torch.no_grad():
-            for _ in range(copies):
-                for images, targets in loader:
-                    on_device = [{"boxes": t["boxes"].to(device), "labels": t["labels"].to(device)} for t in targets]
-                    batch, resized = model.transform([image.to(device) for image in images], on_device)
-                    maps = first(batch.tensors.contiguous(memory_format=torch.channels_last)).to(torch.float16).cpu()
-                    if self.maps is None:  # filled in place: a list joined at the end would need twice the memory
-                        self.maps = torch.empty((copies * self.images, *maps.shape[1:]), dtype=torch.float16)
-                    self.maps[len(self.targets):len(self.targets) + len(maps)] = maps
-                    self.targets += [{"boxes": t["boxes"].cpu(), "labels": t["labels"].cpu()} for t in resized]
-        self.input_size = tuple(batch.tensors.shape[-2:])
+        for _ in range(copies):
+            for images, targets in loader:
+                on_device = [{"boxes": t["boxes"].to(device), "labels": t["labels"].to(device)} for t in targets]
+                maps, resized, self.input_size = stride_sixteen_maps(model, [image.to(device) for image in images],
+                                                                     on_device, memory_format)
+                maps = maps.to(torch.float16).cpu()
+                if self.maps is None:  # filled in place: a list joined at the end would need twice the memory
+                    self.maps = torch.empty((copies * self.images, *maps.shape[1:]), dtype=torch.float16)
+                self.maps[len(self.targets):len(self.targets) + len(maps)] = maps
+                self.targets += [{"boxes": t["boxes"].cpu(), "labels": t["labels"].cpu()} for t in resized]
 
     def epoch(self, epoch: int, order: torch.Tensor, batch_size: int,
               drop_last: bool) -> Iterator[tuple[torch.Tensor, list]]:
@@ -61,6 +60,16 @@ class StrideSixteenMaps:
         for start in range(0, stop, batch_size):
             index = order[start:start + batch_size] + offset
             yield self.maps[index].float(), [self.targets[i] for i in index.tolist()]
+
+
+@torch.no_grad()
+def stride_sixteen_maps(model: nn.Module, images: list[torch.Tensor], targets: list[dict],
+                        memory_format: torch.memory_format) -> tuple[torch.Tensor, list[dict], tuple[int, int]]:
+    """What the network's first part makes of `images` (SSD's own resize and normalisation first), with the targets
+    in the input's pixels and the input's size: the maps `loss_from_maps` trains the rest on."""
+    batch, resized = model.transform(images, targets)
+    maps = model.backbone.features[0](batch.tensors.contiguous(memory_format=memory_format))
+    return maps, resized, tuple(batch.tensors.shape[-2:])
 
 
 def loss_from_maps(model: nn.Module, maps: torch.Tensor, targets: list[dict], input_size: tuple[int, int]) -> dict:

@@ -194,7 +194,7 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
     model = model.to(run_device, memory_format=MEMORY_FORMAT)
     cache = None
     if settings.cached_copies:  # built before a resumed run's state is restored: its own draws, the same maps again
-        cache = StrideSixteenMaps(model, train_set, settings.cached_copies, settings.seed, run_device, workers)
+        cache = StrideSixteenMaps(model, train_set, settings.cached_copies, settings.seed, run_device, workers, MEMORY_FORMAT)
         log(f"cached {len(cache.maps)} stride-16 maps of {len(train_set)} images ({cache.maps.numel() * 2 / 2**30:.1f} GiB)")
     optimizer = torch.optim.AdamW(_parameter_groups(model, settings), lr=settings.learning_rate, weight_decay=settings.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _schedule(settings, len(loader)))
