@@ -11,7 +11,7 @@ import pytest
 from renderloop.dataset.build import build_dataset
 from renderloop.dataset.labels import MIN_SIDE, pepper_boxes, pepper_vertices
 from renderloop.config.dataset import DatasetSpec
-from renderloop.dataset.scenes import dataset_scene
+from renderloop.dataset.scenes import FORMAT_VERSION, dataset_scene
 from renderloop.dataset.views import random_view
 from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
@@ -181,7 +181,7 @@ def test_a_dataset_of_other_settings_is_not_mixed(tmp_path: Path):
     manifest = tmp_path / "dataset.json"
     recorded = json.loads(manifest.read_text())
     manifest.write_text(json.dumps({**recorded, "format_version": 2}))  # images of another renderer: not mixed either
-    with pytest.raises(UserError, match=r"format 2, made by another renderloop \(this one renders format 3"):
+    with pytest.raises(UserError, match=rf"format 2, made by another renderloop \(this one renders format {FORMAT_VERSION}"):
         build_dataset(tmp_path, 1, TINY)
     with pytest.raises(UserError, match="--images 0"):
         build_dataset(tmp_path, 0, TINY)

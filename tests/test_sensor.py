@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from renderloop.config import SensorConfig
+from renderloop.config.camera import SENSOR_NOISE_WIDTH
 from renderloop.perception.stage import run_detect
 from renderloop.render.sensor import metered, sensor_rgb
 from renderloop.render.srgb import decode_u8, encode_u8
@@ -51,12 +52,27 @@ def test_a_misjudged_colour_temperature_turns_a_grey_frame_warm_or_cool_and_leav
     assert abs(warm[1] - cool[1]) < 0.01
 
 
+FULL_WIDTH = (20, SENSOR_NOISE_WIDTH)  # a strip of the stream the noise is stated for
+
+
 def test_the_gain_makes_dark_regions_noisier_than_bright_ones():
     noisy = IDEAL.model_copy(update={"gain": (0.5, 16.0), "shot_noise": (0.002, 0.002), "read_noise": (0.002, 0.002)})
-    dark = decode_u8(sensor_rgb(_flat(0.015), _depth(), noisy, np.random.default_rng(0)))
-    bright = decode_u8(sensor_rgb(_flat(0.18), _depth(), noisy, np.random.default_rng(0)))
+    dark = decode_u8(sensor_rgb(_flat(0.015, FULL_WIDTH), _depth(FULL_WIDTH), noisy, np.random.default_rng(0)))
+    bright = decode_u8(sensor_rgb(_flat(0.18, FULL_WIDTH), _depth(FULL_WIDTH), noisy, np.random.default_rng(0)))
     assert abs(dark.mean() - bright.mean()) < 0.02  # both exposed to the same level
     assert dark.std() > 2 * bright.std()
+
+
+def test_a_frame_a_quarter_as_wide_as_the_stream_has_a_quarter_of_its_noise():
+    noisy = IDEAL.model_copy(update={"shot_noise": (0.002, 0.002), "read_noise": (0.004, 0.004)})
+
+    def noise(width: int) -> float:
+        shape = (width * 3 // 4, width)  # as many pixels as it takes for the figure to settle, at either width
+        return float(decode_u8(sensor_rgb(_flat(0.18, shape), _depth(shape), noisy, np.random.default_rng(0))).std())
+
+    full, quarter = noise(SENSOR_NOISE_WIDTH), noise(SENSOR_NOISE_WIDTH // 4)
+    assert 0.01 < full < 0.05  # linear units: the stated noise, well above a grey level's step
+    assert abs(quarter / full - 0.25) < 0.03  # 16 of the stream's pixels binned into one average their noise down
 
 
 def test_vignetting_darkens_the_corners_and_the_draws_repeat_with_the_seed():

@@ -9,6 +9,10 @@ from pydantic import Field, model_validator
 
 from renderloop.config.fields import MAX_CAMERA_RATE_HZ, MAX_PIXELS, Count, Fraction, Range, Real, Strict
 
+# px: the width of the frames the colour sensor's noise is stated for, the D435's 1280x720 colour stream that the real
+# greenhouse photos come from; its defaults give their flat-region noise (benchmarks/sensor_noise.py)
+SENSOR_NOISE_WIDTH = 1280
+
 
 class SensorConfig(Strict):
     """The colour stream of a RealSense D435-class camera (render/sensor.py); each frame draws every value from its
@@ -28,8 +32,12 @@ class SensorConfig(Strict):
     vignetting: Range(0.0, 1.0) = Field((0.05, 0.3), description="Share of light lost in the image corners.")
     focus_distance: Range(0.05, 100.0) = Field((0.6, 1.2), description="Distance the fixed-focus lens is sharp at, m.")
     defocus: Range(0.0, 20.0) = Field((0.0, 1.5), description="Blur radius per 1/m away from focus, px m.")
-    shot_noise: Range(0.0, 0.1) = Field((0.0005, 0.003), description="Shot-noise variance per unit of linear signal and gain.")
-    read_noise: Range(0.0, 0.1) = Field((0.001, 0.004), description="Read-noise sigma in linear units before the gain.")
+    shot_noise: Range(0.0, 0.1) = Field(
+        (0.00025, 0.0015), description=f"Shot-noise variance per unit of linear signal and gain, of a "
+        f"{SENSOR_NOISE_WIDTH} px wide frame (a narrower one averages it down, render/sensor.py).")
+    read_noise: Range(0.0, 0.1) = Field(
+        (0.0005, 0.002), description=f"Read-noise sigma in linear units before the gain, of a {SENSOR_NOISE_WIDTH} px "
+        "wide frame.")
     sharpen: Range(0.0, 3.0) = Field((0.2, 0.8), description="ISP unsharp-mask amount (1 = 100 %).")
     jpeg_quality: Range(10.0, 100.0) = Field((80.0, 100.0), description="JPEG quality of the stream; 100: not compressed.")
 
