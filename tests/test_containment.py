@@ -156,6 +156,7 @@ time.sleep(max(0.0, start - time.time()))  # both processes start writing togeth
 failed = []
 def write():
     try:
+        atomic.write_bytes(path, data)  # at least once, however late a loaded machine started this process
         while time.time() < start + 0.5:
             atomic.write_bytes(path, data)
     except OSError as error:
