@@ -4,7 +4,7 @@ beside the same figure for ideal renders and for those renders through the senso
 Noise is measured where a frame is flat: Immerkær's estimator (1996: the mean absolute response to a 3x3 kernel that
 cancels planes, times sqrt(pi/2)/6) over each 8x8 block of the grey image, on blocks with no pixel clipped (below 8
 or above 247), and the 10th percentile of a frame's blocks, so that texture counts as little as it can; the figure is
-the median over frames, in grey levels. The model's noise is stated for SENSOR_NOISE_WIDTH px wide frames, so it is
+the median over frames, in grey levels. The model's noise is stated for SENSOR_STREAM_WIDTH px wide frames, so it is
 measured there, on ideal renders (the views of --dataset that did not go through the model) scaled up to that width
 with the sensor's defaults (its defocus off: upscaled frames carry no depth), and at the renders' own width. The real
 frames are looked at and measured only: the noise defaults were set to match them, and nothing else is.
@@ -26,7 +26,7 @@ from scipy.signal import convolve2d
 from common import save_result
 
 from renderloop.config import SensorConfig
-from renderloop.config.camera import SENSOR_NOISE_WIDTH
+from renderloop.config.camera import SENSOR_STREAM_WIDTH
 from renderloop.io.images import open_image
 from renderloop.render.sensor import sensor_rgb
 
@@ -88,17 +88,17 @@ def main() -> None:
     if not real or not renders:
         raise SystemExit("sensor_noise: no real frames or no ideal views to measure")
     width = renders[0].shape[1]
-    real_full = [flat_noise(at_width(frame, SENSOR_NOISE_WIDTH)) for frame in real]
+    real_full = [flat_noise(at_width(frame, SENSOR_STREAM_WIDTH)) for frame in real]
     rows = [
         ["real D435 frames", median(real_full), median([flat_noise(at_width(frame, width)) for frame in real])],
-        ["renders, ideal", median([flat_noise(at_width(view, SENSOR_NOISE_WIDTH)) for view in renders]),
+        ["renders, ideal", median([flat_noise(at_width(view, SENSOR_STREAM_WIDTH)) for view in renders]),
          median([flat_noise(view) for view in renders])],
         ["renders through the sensor model",
-         median([flat_noise(through_sensor(at_width(view, SENSOR_NOISE_WIDTH), i)) for i, view in enumerate(renders)]),
+         median([flat_noise(through_sensor(at_width(view, SENSOR_STREAM_WIDTH), i)) for i, view in enumerate(renders)]),
          median([flat_noise(through_sensor(view, i)) for i, view in enumerate(renders)])],
     ]
     figures = {"real_frames": len(real), "views": len(renders), "real_per_frame": [round(v, 2) for v in real_full],
-               "table": {"columns": ["frames", f"{SENSOR_NOISE_WIDTH} px wide", f"{width} px wide"], "rows": rows}}
+               "table": {"columns": ["frames", f"{SENSOR_STREAM_WIDTH} px wide", f"{width} px wide"], "rows": rows}}
     for row in rows:
         print(row)
     print(save_result(args.name, figures))

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from renderloop.config import SensorConfig
-from renderloop.config.camera import SENSOR_NOISE_WIDTH
+from renderloop.config.camera import SENSOR_STREAM_WIDTH
 from renderloop.perception.stage import run_detect
 from renderloop.render.sensor import metered, sensor_rgb
 from renderloop.render.srgb import decode_u8, encode_u8
@@ -52,7 +52,7 @@ def test_a_misjudged_colour_temperature_turns_a_grey_frame_warm_or_cool_and_leav
     assert abs(warm[1] - cool[1]) < 0.01
 
 
-FULL_WIDTH = (20, SENSOR_NOISE_WIDTH)  # a strip of the stream the noise is stated for
+FULL_WIDTH = (20, SENSOR_STREAM_WIDTH)  # a strip of the stream the noise is stated for
 
 
 def test_the_gain_makes_dark_regions_noisier_than_bright_ones():
@@ -70,9 +70,30 @@ def test_a_frame_a_quarter_as_wide_as_the_stream_has_a_quarter_of_its_noise():
         shape = (width * 3 // 4, width)  # as many pixels as it takes for the figure to settle, at either width
         return float(decode_u8(sensor_rgb(_flat(0.18, shape), _depth(shape), noisy, np.random.default_rng(0))).std())
 
-    full, quarter = noise(SENSOR_NOISE_WIDTH), noise(SENSOR_NOISE_WIDTH // 4)
+    full, quarter = noise(SENSOR_STREAM_WIDTH), noise(SENSOR_STREAM_WIDTH // 4)
     assert 0.01 < full < 0.05  # linear units: the stated noise, well above a grey level's step
     assert abs(quarter / full - 0.25) < 0.03  # 16 of the stream's pixels binned into one average their noise down
+
+
+def test_defocus_blurs_what_lies_off_focus_by_a_circle_that_shrinks_with_the_frames_width():
+    lens = IDEAL.model_copy(update={"focus_distance": (1.0, 1.0), "defocus": (1.5, 1.5)})
+
+    def edge_spread(width: int, depth_m: float) -> float:
+        """The sigma of a black-white edge across the frame, in the stream's pixels: its profile's derivative is the
+        blur's kernel, whose second moment is its variance."""
+        rgb = np.zeros((4, width, 3), dtype=np.uint8)
+        rgb[:, width // 2:] = 255
+        depth = np.full((4, width), depth_m, dtype=np.float32)
+        profile = decode_u8(sensor_rgb(rgb, depth, lens, np.random.default_rng(0)))[2, :, 1]
+        kernel = np.diff(profile) / np.diff(profile).sum()
+        x = np.arange(kernel.size)
+        mean = (kernel * x).sum()
+        return float(np.sqrt((kernel * (x - mean) ** 2).sum())) * SENSOR_STREAM_WIDTH / width
+
+    assert edge_spread(SENSOR_STREAM_WIDTH, 1.0) < 0.01  # in focus: sharp
+    near = edge_spread(SENSOR_STREAM_WIDTH, 0.25)  # 3 /m off focus: sigma 1.5 px m x 3 /m = 4.5 px
+    assert abs(near - 4.5) < 0.2
+    assert abs(edge_spread(SENSOR_STREAM_WIDTH // 2, 0.25) - near) < 0.3  # the same blur in the stream's pixels
 
 
 def test_vignetting_darkens_the_corners_and_the_draws_repeat_with_the_seed():

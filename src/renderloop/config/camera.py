@@ -9,9 +9,9 @@ from pydantic import Field, model_validator
 
 from renderloop.config.fields import MAX_CAMERA_RATE_HZ, MAX_PIXELS, Count, Fraction, Range, Real, Strict
 
-# px: the width of the frames the colour sensor's noise is stated for, the D435's 1280x720 colour stream that the real
-# greenhouse photos come from; its defaults give their flat-region noise (benchmarks/sensor_noise.py)
-SENSOR_NOISE_WIDTH = 1280
+# px: the width of the frames the colour sensor's noise and defocus are stated in, the D435's 1280x720 colour stream
+# that the real greenhouse photos come from; the noise defaults give their flat-region noise (benchmarks/sensor_noise.py)
+SENSOR_STREAM_WIDTH = 1280
 
 
 class SensorConfig(Strict):
@@ -31,12 +31,17 @@ class SensorConfig(Strict):
         "over the blue gain (red times e^(w/2), blue times e^(-w/2)); > 0 warm, < 0 cool.")
     vignetting: Range(0.0, 1.0) = Field((0.05, 0.3), description="Share of light lost in the image corners.")
     focus_distance: Range(0.05, 100.0) = Field((0.6, 1.2), description="Distance the fixed-focus lens is sharp at, m.")
-    defocus: Range(0.0, 20.0) = Field((0.0, 1.5), description="Blur radius per 1/m away from focus, px m.")
+    # The D435's colour lens (OV2740 behind 1.93 mm at f/2, 1.4 um pixels, 1920 px across) images a point 1/m away from
+    # focus as a disc 1.93 mm x 0.97 mm / 1.4 um = 1.3 px wide at 1920 px, 0.9 px at 1280: a Gaussian sigma of 0.22 px
+    # (a disc's sigma is a quarter of its width). The range adds the spread of fixed-focus units.
+    defocus: Range(0.0, 20.0) = Field(
+        (0.15, 0.35), description=f"Gaussian sigma of the blur per 1/m away from focus, px m, of a {SENSOR_STREAM_WIDTH} "
+        "px wide frame (a narrower one blurs as many pixels fewer, render/sensor.py).")
     shot_noise: Range(0.0, 0.1) = Field(
         (0.00025, 0.0015), description=f"Shot-noise variance per unit of linear signal and gain, of a "
-        f"{SENSOR_NOISE_WIDTH} px wide frame (a narrower one averages it down, render/sensor.py).")
+        f"{SENSOR_STREAM_WIDTH} px wide frame (a narrower one averages it down, render/sensor.py).")
     read_noise: Range(0.0, 0.1) = Field(
-        (0.0005, 0.002), description=f"Read-noise sigma in linear units before the gain, of a {SENSOR_NOISE_WIDTH} px "
+        (0.0005, 0.002), description=f"Read-noise sigma in linear units before the gain, of a {SENSOR_STREAM_WIDTH} px "
         "wide frame.")
     sharpen: Range(0.0, 3.0) = Field((0.2, 0.8), description="ISP unsharp-mask amount (1 = 100 %).")
     jpeg_quality: Range(10.0, 100.0) = Field((80.0, 100.0), description="JPEG quality of the stream; 100: not compressed.")

@@ -25,8 +25,9 @@ SCENE_STREAM = 0xDA7A
 # 2: the neighbouring rows' plants bear their fruit, labelled (1 drew them without); 3: 'pepper' and 'highwire'
 # leaves tinted per plant (DATASET_LEAF_TINT), the sensor's white balance misjudged (DATASET_SENSOR), close
 # views clear of cutting a fruit with the near clip; 4: the colour sensor's noise measured on real frames, and averaged
-# down in frames narrower than the stream it is stated for. A set is resumed only by the format it was made with.
-FORMAT_VERSION = 4
+# down in frames narrower than the stream it is stated for; 5: the lens's defocus from the camera's optics, stated for
+# that stream too. A set is resumed only by the format it was made with.
+FORMAT_VERSION = 5
 MAX_TRIES = 20
 HIGHWIRE_HEIGHT = (1.3, 1.9)  # m: the canopy of a 'highwire' scene's plants, under the room's 3.5 m
 DATASET_LEAF_TINT = (0.0, 1.0)  # pepper_style.leaf_tint: dark green crops to light yellow-green ones

@@ -5,11 +5,11 @@ Its auto exposure meters the frame (centre-weighted) and sets a gain that brings
 foliage up, so the background clips white; its auto white balance misjudges the light's
 colour temperature (too warm or too cool) and is off by a few per cent more; the small
 sensor adds shot noise (that the gain amplifies, so dark regions are noisy) and read
-noise, stated for the full-width stream (SENSOR_NOISE_WIDTH px): a frame W px wide bins
-(SENSOR_NOISE_WIDTH / W)^2 of its pixels into each of its own, which averages their noise
-down to W / SENSOR_NOISE_WIDTH of its sigma; the cheap lens darkens the corners
-(vignetting) and blurs what lies far from its fixed focus; the ISP sharpens, and the
-stream is often JPEG-compressed.
+noise; the cheap lens darkens the corners (vignetting) and blurs what lies far from its
+fixed focus; the ISP sharpens, and the stream is often JPEG-compressed. Noise and defocus
+are stated for the full-width stream (SENSOR_STREAM_WIDTH px): a frame W px wide bins
+(SENSOR_STREAM_WIDTH / W)^2 of its pixels into each of its own, which averages their noise
+down to W / SENSOR_STREAM_WIDTH of its sigma and shrinks a blur's circle in pixels as much.
 `sensor_rgb` applies these in that order to the ideal sRGB frame, in linear light; with
 Cycles that frame is first rendered again blurred by the camera's motion over the exposure
 (`render/motion.py`, `CyclesRenderer.render_blurred`), the raster backend has no blur.
@@ -29,7 +29,7 @@ from PIL import Image, ImageFilter
 from scipy.ndimage import gaussian_filter
 
 from renderloop.config import SensorConfig
-from renderloop.config.camera import SENSOR_NOISE_WIDTH
+from renderloop.config.camera import SENSOR_STREAM_WIDTH
 from renderloop.render.srgb import decode_u8, encode_u8
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 luminance of linear RGB
@@ -51,8 +51,9 @@ def metered(linear: np.ndarray) -> float:
 
 
 def _defocus(linear: np.ndarray, depth: np.ndarray, focus: float, strength: float) -> np.ndarray:
-    """A fixed-focus lens: blur grows with |1/z - 1/focus| (the circle of confusion); pixels are blended between the
-    sharp image and one blurred by the largest circle, which is cheap and looks the same at these small amounts."""
+    """A fixed-focus lens: blur grows with |1/z - 1/focus| (the circle of confusion; `strength` in px m of this
+    frame); pixels are blended between the sharp image and one blurred by the largest circle, which is cheap and
+    looks the same at these small amounts."""
     if strength <= 0:
         return linear
     with np.errstate(divide="ignore"):
@@ -95,10 +96,11 @@ def sensor_rgb(rgb: np.ndarray, depth: np.ndarray, settings: SensorConfig, rng: 
     y, x = np.mgrid[0:height, 0:width]
     r2 = (((x - (width - 1) / 2) / (width / 2)) ** 2 + ((y - (height - 1) / 2) / (height / 2)) ** 2) / 2
     linear = linear * (1.0 - _draw(rng, settings.vignetting) * r2)[..., None].astype(np.float32)
-    linear = _defocus(linear, depth, _draw(rng, settings.focus_distance), _draw(rng, settings.defocus))
+    binning = width / SENSOR_STREAM_WIDTH
+    linear = _defocus(linear, depth, _draw(rng, settings.focus_distance), _draw(rng, settings.defocus) * binning)
     # shot noise (variance proportional to the light collected, made larger by the gain) and read noise
     shot, read = _draw(rng, settings.shot_noise), _draw(rng, settings.read_noise)
-    sigma = np.sqrt(np.maximum(linear, 0.0) * shot * gain + (read * gain) ** 2) * (width / SENSOR_NOISE_WIDTH)
+    sigma = np.sqrt(np.maximum(linear, 0.0) * shot * gain + (read * gain) ** 2) * binning
     linear = linear + rng.standard_normal(linear.shape).astype(np.float32) * sigma.astype(np.float32)
     encoded = _sharpen(encode_u8(linear), _draw(rng, settings.sharpen))
     return _jpeg(encoded, _draw(rng, settings.jpeg_quality))

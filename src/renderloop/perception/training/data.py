@@ -2,9 +2,10 @@
 
 Augmentation is the SSD recipe (torchvision's v2 transforms carry the boxes along):
 photometric distortion, zoom out (smaller fruit on a padded canvas), IoU-constrained
-random crops (larger fruit, fruit cut by the border), horizontal flips; then what a
-real camera does to a photo and a render lacks: defocus blur, sensor noise and JPEG
-compression, each on a share of the images. Fruit
+random crops (larger fruit, fruit cut by the border), horizontal flips; then blur and JPEG
+compression, each on a share of the images. Sensor noise is not added here: a training set's
+views through the colour-sensor model (`render/sensor.py`) carry the real camera's measured
+noise, and noise on top of them would be many times the real frames'. Fruit
 marked iscrowd (tiny or mostly hidden, see `renderloop.dataset.labels`) are not targets.
 """
 
@@ -59,8 +60,7 @@ class _Boxes(torch.utils.data.Dataset):
         geometry = [v2.RandomPhotometricDistort(p=0.5), v2.RandomZoomOut(fill=FILL, side_range=(1.0, 2.0), p=0.3),
                     v2.RandomIoUCrop(), v2.RandomHorizontalFlip(),
                     v2.RandomApply([v2.GaussianBlur(5, sigma=(0.1, 1.5))], p=0.2)] if augment else []
-        noise = [v2.RandomApply([v2.GaussianNoise(sigma=0.02, clip=True)], p=0.2)] if augment else []
-        self.transform = v2.Compose([*geometry, v2.ToDtype(torch.float32, scale=True), *noise, v2.SanitizeBoundingBoxes()])
+        self.transform = v2.Compose([*geometry, v2.ToDtype(torch.float32, scale=True), v2.SanitizeBoundingBoxes()])
 
     def __len__(self) -> int:
         return len(self.samples)
