@@ -31,8 +31,8 @@ class SensorConfig(Strict):
         "over the blue gain (red times e^(w/2), blue times e^(-w/2)); > 0 warm, < 0 cool.")
     vignetting: Range(0.0, 1.0) = Field((0.05, 0.3), description="Share of light lost in the image corners.")
     focus_distance: Range(0.05, 100.0) = Field((0.6, 1.2), description="Distance the fixed-focus lens is sharp at, m.")
-    # The D435's colour lens (OV2740 behind 1.93 mm at f/2, 1.4 um pixels, 1920 px across) images a point 1/m away from
-    # focus as a disc 1.93 mm x 0.97 mm / 1.4 um = 1.3 px wide at 1920 px, 0.9 px at 1280: a Gaussian sigma of 0.22 px
+    # The D435's colour lens (1.9 mm at f/2 over the OV2740's 1.4 um pixels, 1920 across) images a point 1/m away from
+    # focus as a disc 1.9 mm x 0.95 mm / 1.4 um = 1.29 px wide at 1920 px, 0.86 px at 1280: a Gaussian sigma of 0.21 px
     # (a disc's sigma is a quarter of its width). The range adds the spread of fixed-focus units.
     defocus: Range(0.0, 20.0) = Field(
         (0.15, 0.35), description=f"Gaussian sigma of the blur per 1/m away from focus, px m, of a {SENSOR_STREAM_WIDTH} "
