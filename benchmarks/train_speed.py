@@ -41,7 +41,7 @@ def images_per_second(backbone: str, memory_format, device: str, size: int, step
 
     from renderloop.config.training import TrainSettings
     from renderloop.perception.training.backbones import frozen_layers
-    from renderloop.perception.training.feature_cache import loss_from_maps, stride_sixteen_maps
+    from renderloop.perception.training.feature_cache import frozen_maps, loss_from_maps
     from renderloop.perception.training.ssd import build_model
 
     torch.manual_seed(0)
@@ -53,7 +53,7 @@ def images_per_second(backbone: str, memory_format, device: str, size: int, step
     optimizer = torch.optim.AdamW([p for p in model.parameters() if p.requires_grad], lr=1e-4)
     images, targets = batch(size, device)
     if cached:
-        maps, targets, input_size = stride_sixteen_maps(model, images, targets, memory_format)
+        maps, targets, input_size = frozen_maps(model, images, targets, memory_format)
     rates = []
     for step in range(steps + 1):
         start = time.perf_counter()

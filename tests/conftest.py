@@ -87,14 +87,16 @@ def cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
     return ended.value.code or 0, captured.out, captured.err
 
 
-def jittered_model(seed: int):
-    """A random detector network whose scores differ between anchors (a fresh head scores every anchor alike)."""
+def jittered_model(seed: int, backbone: str | None = None):
+    """A random detector network (on the default backbone unless told) whose scores differ between anchors (a fresh
+    head scores every anchor alike)."""
     import torch
 
+    from renderloop.config.training import DEFAULT_BACKBONE
     from renderloop.perception.training.ssd import build_model
 
     torch.manual_seed(seed)
-    model = build_model().eval()
+    model = build_model(backbone or DEFAULT_BACKBONE).eval()
     with torch.no_grad():
         for parameter in model.parameters():
             parameter.add_(torch.randn_like(parameter) * 0.05)

@@ -17,7 +17,7 @@ from renderloop.config.training import LITE0_LAYERS
 from renderloop.errors import UserError
 from renderloop.perception.training import backbones
 from renderloop.perception.training.backbones import lite0_checkpoint, lite0_features, lite0_state, load_lite0
-from renderloop.perception.training.ssd import build_model, export_onnx
+from renderloop.perception.training.ssd import DecodedSSD, build_model, export_onnx
 from renderloop.perception.training.train import TrainSettings, backbone_of_init, train_detector
 
 MILITARY_UNIFORM = 652  # ImageNet's class for the portrait of Grace Hopper that matplotlib ships
@@ -88,7 +88,8 @@ def test_a_checkpoint_whose_tensors_do_not_fit_is_one_line_naming_it(tmp_path: P
 
 def test_an_unknown_backbone_is_refused_listing_the_choices(monkeypatch, capsys, tiny_dataset: Path, tmp_path: Path):
     code, _, stderr = cli(monkeypatch, capsys, "train", str(tiny_dataset), "--out", str(tmp_path / "m.onnx"), "--backbone", "resnet")
-    assert code == 2 and stderr.strip().splitlines() == ["renderloop: error: --backbone resnet: choose from efficientnet-lite0, mobilenet-v3"]
+    assert code == 2 and stderr.strip().splitlines() == [
+        "renderloop: error: --backbone resnet: choose from efficientnet-lite0, mobilenet-v3, efficientnet-lite0-s8"]
     assert not (tmp_path / "m.onnx").exists()
 
 
@@ -139,14 +140,40 @@ def test_a_detector_from_random_weights_has_no_layers_to_keep_and_freezes_none()
     assert len(backbones.frozen_layers(lite0, 6)) == 6
 
 
-def test_the_whole_backbone_can_be_frozen_and_then_only_the_new_layers_learn():
+@pytest.mark.parametrize("backbone", ["efficientnet-lite0", "efficientnet-lite0-s8"])
+def test_the_whole_backbone_can_be_frozen_and_then_only_the_new_layers_learn(backbone: str):
     assert LITE0_LAYERS == len(lite0_features())  # the config's bound, which cannot import torch, is the network's
-    model = build_model("efficientnet-lite0", pretrained=False)
+    model = build_model(backbone, pretrained=False)
     frozen = backbones.frozen_layers(model, LITE0_LAYERS)
     assert all(not p.requires_grad for p in model.backbone.features.parameters())
     assert all(p.requires_grad for p in model.backbone.extra.parameters()) and all(p.requires_grad for p in model.head.parameters())
-    # the block SSDlite splits at its stride-16 tap is frozen in both halves, and counted once
+    # the blocks the extractor splits at its taps are frozen in both halves, and counted once
     assert sum(1 for layer in frozen for _ in layer.parameters()) == sum(1 for _ in lite0_features().parameters())
-    one_short = build_model("efficientnet-lite0", pretrained=False)
+    one_short = build_model(backbone, pretrained=False)
     backbones.frozen_layers(one_short, LITE0_LAYERS - 1)
-    assert all(p.requires_grad for p in one_short.backbone.features[1][-1].parameters())  # the head learns
+    assert all(p.requires_grad for p in one_short.backbone.features[-1][-1].parameters())  # the head learns
+
+
+def test_the_stride_8_backbone_is_the_same_network_with_its_smallest_boxes_on_a_grid_of_8_px():
+    torch.manual_seed(0)
+    plain = build_model("efficientnet-lite0", pretrained=False).eval()
+    tapped = build_model("efficientnet-lite0-s8", pretrained=False).eval()
+    tapped.backbone.load_state_dict({**tapped.backbone.state_dict(), **{
+        key: value for key, value in plain.backbone.state_dict().items() if key.startswith("extra.")}})
+    for mine, theirs in zip(tapped.backbone.layers, plain.backbone.layers):  # the layers as the network has them
+        mine.load_state_dict(theirs.state_dict())
+    with torch.no_grad():
+        image = torch.rand(1, 3, 320, 320)
+        maps, reference = list(tapped.backbone(image).values()), list(plain.backbone(image).values())
+        expansion = plain.backbone.layers[backbones.STRIDE_8_BLOCK].block[0](
+            torch.nn.Sequential(*plain.backbone.layers[:backbones.STRIDE_8_BLOCK])(image))
+    # a stride-8 map first (the expansion of the first stride-16 block), then the plain network's maps unchanged
+    assert maps[0].shape == (1, 240, 40, 40) and torch.allclose(maps[0], expansion)
+    assert len(maps) == len(reference) + 1 and all(torch.allclose(a, b, atol=1e-5) for a, b in zip(maps[1:], reference))
+    # its first map's default boxes: the plain network's smallest, 0.04 of the input, with centres 8 px apart
+    anchors = DecodedSSD(tapped).anchors[:40 * 40 * 6]
+    sizes = torch.round(anchors[:, 2:] - anchors[:, :2], decimals=2)
+    assert float(sizes.prod(1).min()) == pytest.approx((0.04 * 320) ** 2, rel=1e-3)
+    centres = torch.unique(torch.round((anchors[:, 0] + anchors[:, 2]) / 2, decimals=2))
+    assert len(centres) == 40 and torch.allclose(torch.diff(centres), torch.tensor(8.0))
+    assert len(DecodedSSD(tapped).anchors) == len(DecodedSSD(plain).anchors) + 40 * 40 * 6

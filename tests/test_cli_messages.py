@@ -175,7 +175,8 @@ CHOICE_CASES = {
     "executor": (["render", "{tmp}/run", "--executor", "rey"], "--executor rey: choose from local, ray; did you mean ray?"),
     "device": (["train", "--out", "{tmp}/m.onnx", "--device", "cud"], "--device cud: choose from auto, cpu, cuda; did you mean cuda?"),
     "backbone": (["train", "--out", "{tmp}/m.onnx", "--backbone", "mobilenet"],
-                 "--backbone mobilenet: choose from efficientnet-lite0, mobilenet-v3; did you mean mobilenet-v3?"),
+                 "--backbone mobilenet: choose from efficientnet-lite0, mobilenet-v3, efficientnet-lite0-s8; "
+                 "did you mean mobilenet-v3?"),
     "photo-class": (["train", "--out", "{tmp}/m.onnx", "--photo-class", "rip"],
                     "--photo-class rip: choose from ripe, unripe; did you mean ripe?"),
     "format": (["config", "--schema", "--format", "jsn"], "--format jsn: choose from table, json; did you mean json?"),

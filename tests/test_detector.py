@@ -60,8 +60,9 @@ def test_postprocessing_equals_torchvisions_ssd():
     assert len(above) > 10 and postprocess(boxes.numpy(), scores.numpy(), 640, 480, score_threshold=0.5) == above
 
 
-def test_onnx_model_gives_the_torch_models_outputs(tmp_path: Path):
-    model = jittered_model(4)
+@pytest.mark.parametrize("backbone", ["efficientnet-lite0", "efficientnet-lite0-s8"])
+def test_onnx_model_gives_the_torch_models_outputs(tmp_path: Path, backbone: str):
+    model = jittered_model(4, backbone)
     path = tmp_path / "model.onnx"
     export_onnx(model, path)
     detector = Detector(path)

@@ -11,13 +11,17 @@ EfficientNet-Lite0 is an inverted-residual network without squeeze-excitation, w
 ReLU6, so it is built here from torchvision's MobileNetV3 blocks and fed to the same
 SSDlite feature extractor: taps at the expansion of the first stride-32 block (672
 channels, stride 16) and at the 1280-channel head (stride 32), plus SSDlite's four extra
-blocks. The checkpoint's convolutions use TensorFlow's 'SAME' padding; a strided one pads
+blocks. `efficientnet-lite0-s8` taps the expansion of the first stride-16 block too (240
+channels, stride 8), so that the smallest default boxes lie on a grid of 8 px instead of 16: a
+fruit 13 px across at the input otherwise falls between the anchors that could match it.
+The checkpoint's convolutions use TensorFlow's 'SAME' padding; a strided one pads
 one pixel less before than after, which `SamePadConv2d` reproduces, so the pretrained
 filters see the pixels they were trained on.
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
@@ -47,6 +51,8 @@ LITE0_STEM, LITE0_HEAD = 32, 1280
 # The first block of the stride-32 stage (features[12], after the stem and five stages): SSDlite's stride-16 tap is its
 # expansion.
 STRIDE_16_BLOCK = 1 + sum(stage[-1] for stage in LITE0_STAGES[:5])
+# The first block of the stride-16 stage (features[6]): the stride-8 tap of `efficientnet-lite0-s8` is its expansion.
+STRIDE_8_BLOCK = 1 + sum(stage[-1] for stage in LITE0_STAGES[:3])
 
 
 class SamePadConv2d(nn.Conv2d):
@@ -176,19 +182,66 @@ def frozen_layers(model: nn.Module, count: int) -> list[nn.Module]:
     are frozen."""
     if model.renderloop_backbone == MOBILENET_V3:
         return []
-    # SSDlite splits the network at its stride-16 tap, inside the first stride-32 block (STRIDE_16_BLOCK): part one
-    # ends with that block's expansion, part two begins with the rest of it. Freezing that block freezes both halves.
-    first, second = model.backbone.features[0], model.backbone.features[1]
-    layers = list(first)[:min(count, STRIDE_16_BLOCK + 1)] + list(second)[:max(0, count - STRIDE_16_BLOCK)]
+    # The extractor splits blocks at its taps (the expansion ends one part, the rest of the block begins the next);
+    # a block is frozen whole, in both parts, through the network's own layers.
+    layers = model.backbone.layers[:count]
     for layer in layers:
         layer.requires_grad_(False)
     return layers
 
 
-def lite0_extractor(pretrained: bool = True) -> nn.Module:
+class Lite0Extractor(SSDLiteFeatureExtractorMobileNet):
+    """SSDlite's multi-scale feature extractor over EfficientNet-Lite0's `layers`: torchvision's, whose parts are its
+    taps at stride 16 and 32, or with `stride_8` a third tap before them (the first part then ends before the stride-8
+    tap and is not one). `layers` keeps the network's own 18 layers, the modules the parts hold (not registered
+    again: the weights are the parts')."""
+
+    def __init__(self, layers: nn.Sequential, stride_8: bool = False) -> None:
+        super().__init__(layers, STRIDE_16_BLOCK, NORM)
+        self.layers, self.untapped = list(layers), int(stride_8)
+        if stride_8:
+            at_8, at_16 = layers[STRIDE_8_BLOCK], layers[STRIDE_16_BLOCK]
+            self.features = nn.Sequential(
+                nn.Sequential(*layers[:STRIDE_8_BLOCK]),
+                nn.Sequential(at_8.block[0]),  # the stride-8 tap: the expansion of the first stride-16 block
+                nn.Sequential(at_8.block[1:], *layers[STRIDE_8_BLOCK + 1:STRIDE_16_BLOCK], at_16.block[0]),
+                nn.Sequential(at_16.block[1:], *layers[STRIDE_16_BLOCK + 1:]))
+
+    def forward(self, x: torch.Tensor) -> dict[str, torch.Tensor]:
+        maps = []
+        for index, part in enumerate(self.features):
+            x = part(x)
+            if index >= self.untapped:
+                maps.append(x)
+        for block in self.extra:
+            x = block(x)
+            maps.append(x)
+        return OrderedDict((str(i), v) for i, v in enumerate(maps))
+
+    def frozen(self, x: torch.Tensor) -> list[torch.Tensor]:
+        """What the layers down to the stride-16 tap (`config.training.CACHE_FROM`) make of `x`, as a cache keeps it:
+        the stride-16 map, and with a stride-8 tap the map before it (40 channels, a sixth of its expansion's size),
+        from which the tap is made again each step."""
+        if not self.untapped:
+            return [self.features[0](x)]
+        before_8 = self.features[0](x)
+        return [before_8, self.features[2](self.features[1](before_8))]
+
+    def from_frozen(self, maps: list[torch.Tensor]) -> list[torch.Tensor]:
+        """Every feature map, from what `frozen` made: the taps, then SSDlite's extra blocks."""
+        features = [self.features[1](maps[0]), maps[1]] if self.untapped else [maps[0]]
+        x = self.features[-1](features[-1])
+        features.append(x)
+        for block in self.extra:
+            x = block(x)
+            features.append(x)
+        return features
+
+
+def lite0_extractor(pretrained: bool = True, stride_8: bool = False) -> Lite0Extractor:
     """SSDlite's multi-scale feature extractor over EfficientNet-Lite0, with its ImageNet weights unless told not to."""
     features = lite0_features()
     _normal_init(features)
     if pretrained:
         load_lite0(features)
-    return SSDLiteFeatureExtractorMobileNet(features, STRIDE_16_BLOCK, NORM)
+    return Lite0Extractor(features, stride_8)

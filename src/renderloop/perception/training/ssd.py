@@ -34,7 +34,7 @@ from torchvision.models.detection.ssd import SSD
 from torchvision.models.detection.ssdlite import SSDLiteHead
 from torchvision.models.detection.transform import GeneralizedRCNNTransform
 
-from renderloop.config.training import BACKBONES, DEFAULT_BACKBONE, MOBILENET_V3
+from renderloop.config.training import BACKBONES, DEFAULT_BACKBONE, EFFICIENTNET_LITE0_S8, MOBILENET_V3
 from renderloop.perception.training.backbones import NORM, lite0_extractor
 
 OPSET = 17
@@ -43,6 +43,8 @@ OPSET = 17
 # half of our training fruit are under 22 px at the input: with boxes that large no
 # anchor overlaps them by IoU 0.5 and small fruit were learned from one anchor each.
 # Two boxes per map and four ratios each, as torchvision's, so the head keeps its shape.
+# With a stride-8 tap (`efficientnet-lite0-s8`) the same boxes start there, each size on a grid half as coarse, and the
+# last of its seven maps holds boxes of the whole input.
 ANCHOR_SCALES = [0.04, 0.08, 0.16, 0.32, 0.52, 0.76, 1.0]
 
 
@@ -52,27 +54,28 @@ SSD_SETTINGS = {"score_thresh": 0.001, "nms_thresh": 0.55, "detections_per_img":
                 "image_mean": [0.5, 0.5, 0.5], "image_std": [0.5, 0.5, 0.5]}
 
 
-def default_boxes(input_size: int) -> DefaultBoxGenerator:
+def default_boxes(input_size: int, backbone: str = DEFAULT_BACKBONE) -> DefaultBoxGenerator:
     """The default boxes over an `input_size` square input: the same sizes in pixels at any input (ANCHOR_SCALES of a
     320 px one) on a grid that grows with it, so that a network fine-tuned or run at another size than it trained
     at regresses from boxes of the sizes it learned from, on features of fruit of so many pixels; boxes that grew
     with the input would come out scaled by its growth. Run at another size, a network still loses much of its
     recall (the model card's steps 18 and 20): train at the size it will run at."""
-    return DefaultBoxGenerator([[2, 3] for _ in range(6)], scales=[s * INPUT_SIZE / input_size for s in ANCHOR_SCALES])
+    scales = ANCHOR_SCALES + [1.0] if backbone == EFFICIENTNET_LITE0_S8 else ANCHOR_SCALES
+    return DefaultBoxGenerator([[2, 3] for _ in scales[1:]], scales=[s * INPUT_SIZE / input_size for s in scales])
 
 
 def build_model(backbone: str = DEFAULT_BACKBONE, pretrained: bool = True, train_size: int = INPUT_SIZE) -> nn.Module:
     """The detector over `backbone`, training at a `train_size` square input; `pretrained` loads the backbone's
     ImageNet weights where it has them (weights loaded afterwards, from a checkpoint or an ONNX model, make it moot).
     Its weights are those of any size: only the input transform and the grid of default boxes depend on it."""
-    anchors, size = default_boxes(train_size), (train_size, train_size)
+    anchors, size = default_boxes(train_size, backbone), (train_size, train_size)
     if backbone == MOBILENET_V3:
         model = ssdlite320_mobilenet_v3_large(weights=None, weights_backbone=None, num_classes=len(CLASSES) + 1)
         model.anchor_generator = anchors
         model.transform = GeneralizedRCNNTransform(train_size, train_size, SSD_SETTINGS["image_mean"],
                                                    SSD_SETTINGS["image_std"], size_divisible=1, fixed_size=size)
     else:
-        extractor = lite0_extractor(pretrained)
+        extractor = lite0_extractor(pretrained, stride_8=backbone == EFFICIENTNET_LITE0_S8)
         channels = det_utils.retrieve_out_channels(extractor, size)
         head = SSDLiteHead(channels, anchors.num_anchors_per_location(), len(CLASSES) + 1, NORM)
         model = SSD(extractor, anchors, size, len(CLASSES) + 1, head=head, **SSD_SETTINGS)
@@ -100,7 +103,7 @@ class DecodedSSD(nn.Module):
         transform = model.transform
         self.register_buffer("mean", torch.tensor(transform.image_mean).view(1, 3, 1, 1))
         self.register_buffer("std", torch.tensor(transform.image_std).view(1, 3, 1, 1))
-        generator = default_boxes(input_size)
+        generator = default_boxes(input_size, model.renderloop_backbone)
         with torch.no_grad():
             dummy = torch.zeros(1, 3, input_size, input_size)
             features = list(model.backbone(dummy).values())

@@ -33,7 +33,7 @@ from renderloop.io.atomic import atomic_path, write_json
 from renderloop.perception.detector import CLASSES
 from renderloop.perception.training.backbones import frozen_layers
 from renderloop.perception.training.data import PepperBoxes, PhotoBoxes, collate
-from renderloop.perception.training.feature_cache import StrideSixteenMaps, loss_from_maps
+from renderloop.perception.training.feature_cache import FrozenMaps, loss_from_maps
 from renderloop.perception.training.from_onnx import freeze_batch_norms, onnx_metadata, weights_from_onnx
 from renderloop.perception.training.quantize import QUANTIZED
 from renderloop.perception.training.ssd import backbone_of, build_model, export_onnx
@@ -194,8 +194,8 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
     model = model.to(run_device, memory_format=MEMORY_FORMAT)
     cache = None
     if settings.cached_copies:  # built before a resumed run's state is restored: its own draws, the same maps again
-        cache = StrideSixteenMaps(model, train_set, settings.cached_copies, settings.seed, run_device, workers, MEMORY_FORMAT)
-        log(f"cached {len(cache.maps)} stride-16 maps of {len(train_set)} images ({cache.maps.numel() * 2 / 2**30:.1f} GiB)")
+        cache = FrozenMaps(model, train_set, settings.cached_copies, settings.seed, run_device, workers, MEMORY_FORMAT)
+        log(f"cached the maps of {len(cache.targets)} copies of {len(train_set)} images ({cache.gib:.1f} GiB)")
     optimizer = torch.optim.AdamW(_parameter_groups(model, settings), lr=settings.learning_rate, weight_decay=settings.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _schedule(settings, len(loader)))
     schedule = settings.model_dump(exclude={"max_steps"})  # what a resumed run must share
@@ -235,7 +235,7 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
             if cache is None:
                 loss = sum(model([image.to(run_device) for image in images], targets).values())
             else:
-                maps = images.to(run_device, memory_format=MEMORY_FORMAT)
+                maps = [m.to(run_device, memory_format=MEMORY_FORMAT) for m in images]
                 loss = sum(loss_from_maps(model, maps, targets, cache.input_size).values())
             if not torch.isfinite(loss):
                 raise RuntimeError(f"training diverged at epoch {epoch + 1} (loss {float(loss)})")
@@ -244,7 +244,7 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
             optimizer.step()
             scheduler.step()
             losses.append(loss.item())
-            seen += len(images)
+            seen += len(targets)
             steps += 1
             if settings.max_steps is not None and steps >= settings.max_steps:
                 break
