@@ -7,13 +7,17 @@ from __future__ import annotations
 
 import os
 import re
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import pytest
 
 from renderloop.config import load_config
 from renderloop.errors import UserError
 from renderloop.evaluation.seeds import parse_seeds
-from renderloop.parallel import LOCAL, Executor, Workers, map_tasks, ray_session
+from renderloop.parallel import LOCAL, PARENT_POLL_S, Executor, Workers, map_tasks, ray_session
 
 TWO = Executor(workers=2)
 REFUSED = r"^--seeds 'x': 'x' is not a seed or a range like 0-19$"  # parse_seeds("x")'s one line
@@ -51,6 +55,41 @@ def test_workers_hold_their_object_and_a_failed_start_is_its_one_line_at_the_fir
     with Workers(executor, parse_seeds, "x") as workers:  # a process pool's initializer would only say it broke
         with pytest.raises(UserError, match=REFUSED):
             workers.submit("index", 1).result()
+
+
+# A parent that starts two workers on a minute's sleep each, prints their pids and waits for them.
+SLEEPING_PARENT = """
+import multiprocessing, threading, time
+from renderloop.parallel import Executor, map_tasks
+threading.Thread(target=list, args=(map_tasks(Executor(workers=2), time.sleep, [(60,), (60,)]),), daemon=True).start()
+while len(multiprocessing.active_children()) < 2:
+    time.sleep(0.05)
+print(*[p.pid for p in multiprocessing.active_children()], flush=True)
+time.sleep(60)
+"""
+
+
+def _running(pid: int) -> bool:
+    """Whether `pid` still runs: neither gone nor a zombie (the init process of a container may never reap it)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads process states from /proc")
+def test_workers_stop_when_the_process_that_started_them_is_killed_outright():
+    parent = subprocess.Popen([sys.executable, "-c", SLEEPING_PARENT], stdout=subprocess.PIPE, text=True)
+    try:
+        workers = [int(pid) for pid in parent.stdout.readline().split()]
+        assert len(workers) == 2 and all(_running(pid) for pid in workers)
+    finally:
+        parent.kill()  # SIGKILL: no pool shutdown runs, the workers are orphaned mid-task
+        parent.wait()
+    deadline = time.monotonic() + 20 * PARENT_POLL_S
+    while any(_running(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(_running(pid) for pid in workers), "a worker sleeps on for nobody"
 
 
 def test_one_worker_in_the_background_works_in_a_process_of_its_own():

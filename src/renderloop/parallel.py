@@ -12,9 +12,10 @@ takes one of two shapes:
   frames); Ray runs them as actors, one per worker.
 
 One local worker works in this process, unless it must leave this process free (the online
-camera's Cycles frames, while the physics keeps stepping); more are spawned processes. A
-worker's `UserError`, in its work or in building its object, comes back to the caller as
-the one line it is, whichever the executor.
+camera's Cycles frames, while the physics keeps stepping); more are spawned processes, which
+stop once the process that started them is gone, however it ended. A worker's `UserError`,
+in its work or in building its object, comes back to the caller as the one line it is,
+whichever the executor.
 
 A low-level module: render, loop, dataset and evaluation use it, it uses none of them.
 """
@@ -24,6 +25,8 @@ from __future__ import annotations
 import os
 import socket
 import sys
+import threading
+import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from contextlib import ExitStack, contextmanager
@@ -149,21 +152,35 @@ def _processes(workers: int, initializer: Callable[..., None] | None = None,
                initargs: tuple = ()) -> Iterator[ProcessPoolExecutor]:
     # spawn, not fork: neither Blender nor an OpenGL context survives a fork
     pool = ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_started,
-                               initargs=(initializer, initargs))
+                               initargs=(os.getpid(), initializer, initargs))
     try:
         yield pool
     finally:
         pool.shutdown(cancel_futures=True)  # a caller that stops early drops the work not started
 
 
-def _started(initializer: Callable[..., None] | None, initargs: tuple) -> None:
+PARENT_POLL_S = 0.5  # how often a spawned worker looks whether the process that started it still lives
+
+
+def _started(parent: int, initializer: Callable[..., None] | None, initargs: tuple) -> None:
     """A spawned worker's standard output points at its standard error: its results come back through the pool,
     and what a library prints from native code (Cycles' CUDA-loader warning when it loads) must not land in the
-    output a caller reads from the program's stdout."""
+    output a caller reads from the program's stdout. And it watches `parent`, the process that started it
+    (`_leave_with`): its pid as the parent knew it, for a parent killed while the worker started."""
     sys.stdout.flush()
     os.dup2(2, 1)
+    threading.Thread(target=_leave_with, args=(parent,), daemon=True).start()
     if initializer is not None:
         initializer(*initargs)
+
+
+def _leave_with(parent: int) -> None:
+    """Stop this worker once `parent` is gone. A parent killed outright (SIGKILL, or a SIGTERM, which runs no
+    `finally` and so no pool shutdown) leaves its workers to the init process, which would let them render on for
+    nobody, holding the cores, until their task ended."""
+    while os.getppid() == parent:
+        time.sleep(PARENT_POLL_S)
+    os._exit(1)
 
 
 def _finished(futures: list[Future], ordered: bool) -> Iterator[Any]:
