@@ -12,7 +12,7 @@ import pytest
 from conftest import cli
 from PIL import Image
 
-from renderloop.perception.detector import PASS_FLOOR, Detection, Detector
+from renderloop.perception.detector import PASS_FLOOR, Detection, Detector, shipped_model
 from renderloop.perception.photo_score import (
     LabelledImage, PhotoScore, Searched, ap50, match, sheet_picks, tally,
 )
@@ -141,6 +141,15 @@ def test_the_verb_scores_the_photos_from_one_search_at_the_floor_and_writes_its_
         with Image.open(out / name) as image:
             assert image.format == "PNG" and image.width > 100
     assert not list(out.glob(".*partial"))
+
+
+def test_the_name_shipped_scores_the_model_in_the_package(photos, fake_network, tmp_path: Path, monkeypatch, capsys) -> None:
+    folder, labels = photos
+    out = tmp_path / "score"
+    code, _, stderr = cli(monkeypatch, capsys, "score-photos", str(folder), "--coco", str(labels), "--out", str(out),
+                          "--model", "shipped")
+    assert code == 0, stderr
+    assert PhotoScore.model_validate_json((out / "score.json").read_text()).model == str(shipped_model())
 
 
 def test_ripeness_categories_give_per_class_scores_and_the_options_reach_the_search(

@@ -168,6 +168,8 @@ def fly(run_dir: RunDir, force: Force = False) -> None:
 
 
 THRESHOLD_HELP = f"Score threshold; default: the config's ({DetectorConfig.model_fields['score_threshold'].default})."
+SHIPPED_NAME = "shipped"  # on the command line, wherever a model file goes: the model in the package
+MODEL_HELP = f"ONNX model, or '{SHIPPED_NAME}' for the model in the package."
 
 
 def _names(text: str) -> tuple[str, ...]:
@@ -305,7 +307,7 @@ def train(
     device: Annotated[str, Choice(TRAIN_DEVICES, "Where to train; auto: cuda when there is one.")] = "auto",
     loader_workers: Annotated[int, typer.Option(min=0, max=64, help="Data-loading processes.")] = 1,
     init: Annotated[Path | None, typer.Option(help="Start from these weights (fine-tuning): an earlier run's .ckpt, a "
-                                              "renderloop ONNX detector, or 'shipped' for the model in the package.")] = None,
+                                              f"renderloop ONNX detector, or '{SHIPPED_NAME}' for the model in the package.")] = None,
     backbone: Annotated[str | None, Choice(BACKBONES, f"{TrainSettings.model_fields['backbone'].description} Default: "
                                            f"--init's, else {DEFAULT_BACKBONE}.")] = None,
     photos: Annotated[Path | None, typer.Option(help="Your own labelled photos to train on too (a folder; with --coco): "
@@ -319,14 +321,11 @@ def train(
                                                    "its model again.")] = None,
 ) -> None:
     """Train the pepper detector (SSDlite) from ImageNet or --init weights; resumes from its checkpoint; exports ONNX."""
-    from renderloop.perception.detector import shipped_model
-
     try:
         from renderloop.perception.training.train import Photos, backbone_of_init, train_detector
     except ImportError as error:
         raise _train_extra("training", error) from None
-    if init is not None and str(init) == "shipped":
-        init = shipped_model()
+    init = _named_model(init)
     if (photos is None) != (coco is None):
         raise UserError("--photos and --coco go together: the photo folder and its COCO labels")
     if backbone is None and init is not None:
@@ -344,7 +343,7 @@ def train(
 
 @app.command()
 def quantize(
-    model: Annotated[Path, typer.Argument(help="The ONNX detector to quantize, or 'shipped'.", show_default=False)],
+    model: Annotated[Path, typer.Argument(help=f"The ONNX detector to quantize, or '{SHIPPED_NAME}'.", show_default=False)],
     dataset_dirs: Annotated[list[Path], typer.Argument(help="Dataset folders made by `renderloop dataset`: the "
                                                        "calibration renders come from their training splits.",
                                                        show_default=False)],
@@ -354,14 +353,19 @@ def quantize(
     force: Annotated[bool, typer.Option("--force", help="Replace --out if it exists.")] = False,
 ) -> None:
     """Quantize a detector to int8 for ONNX Runtime's integer kernels, calibrated on renders (docs/stages/perception.md)."""
-    from renderloop.perception.detector import shipped_model
-
     try:
         from renderloop.perception.training.quantize import quantize_on_renders
     except ImportError as error:
         raise _train_extra("quantizing", error) from None
-    made = quantize_on_renders(shipped_model() if str(model) == "shipped" else model, dataset_dirs, out, images, seed, force)
+    made = quantize_on_renders(_named_model(model), dataset_dirs, out, images, seed, force)
     typer.echo(f"quantize: wrote {made}")
+
+
+def _named_model(model: Path | None) -> Path | None:
+    """A model path as given on the command line, where the name `shipped` means the model in the package."""
+    from renderloop.perception.detector import shipped_model
+
+    return shipped_model() if model is not None and str(model) == SHIPPED_NAME else model
 
 
 def _detector_options(model: Path | None, threshold: float | None, windows: str | None, mirror: bool | None,
@@ -369,7 +373,7 @@ def _detector_options(model: Path | None, threshold: float | None, windows: str 
     """The detector settings given of `--model`, `--threshold`, `--windows`, `--mirror` and `--min-box`, as config fields."""
     from renderloop.perception.tiling import layout_names, parse_layouts
 
-    given = {"model": model, "score_threshold": threshold, "windows": None if windows is None else layout_names(parse_layouts(windows)),
+    given = {"model": _named_model(model), "score_threshold": threshold, "windows": None if windows is None else layout_names(parse_layouts(windows)),
              "mirror": mirror, "min_box_px": min_box}
     return {name: value for name, value in given.items() if value is not None}
 
@@ -385,7 +389,7 @@ def detect(
     run_dir: Annotated[Path | None, typer.Argument(help="Run directory with rendered frames.", show_default=False)] = None,
     images: Annotated[Path | None, typer.Option(help="Detect on this folder of photos instead (PNG/JPEG, no depth).")] = None,
     out: Annotated[Path | None, typer.Option(help="With --images: the JSON file to write.")] = None,
-    model: Annotated[Path | None, typer.Option(help="ONNX model; default: the config's, else the shipped one.")] = None,
+    model: Annotated[Path | None, typer.Option(help=MODEL_HELP + " Default: the config's, else the shipped one.")] = None,
     threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help=THRESHOLD_HELP)] = None,
     windows: Windows = None,
     mirror: Mirror = None,
@@ -416,7 +420,7 @@ def detect(
 @app.command(name="threshold")
 def choose_threshold(
     run_dirs: Annotated[list[Path], typer.Argument(help="Rendered runs the detector never trained on.", show_default=False)],
-    model: Annotated[Path | None, typer.Option(help="ONNX model; default: the shipped one.")] = None,
+    model: Annotated[Path | None, typer.Option(help=MODEL_HELP + " Default: the shipped one.")] = None,
     windows: Windows = None,
     mirror: Mirror = None,
     min_box: MinBox = None,
@@ -523,7 +527,7 @@ def score_photo_folder(
                                        "categories (ripe/unripe or red/yellow/orange/green give per-class scores too).",
                                        show_default=False)],
     out: Annotated[Path, typer.Option(help="Folder to write score.json, pr_curve.png and sheet.png into.", show_default=False)],
-    model: Annotated[Path | None, typer.Option(help="ONNX model; default: the shipped one.")] = None,
+    model: Annotated[Path | None, typer.Option(help=MODEL_HELP + " Default: the shipped one.")] = None,
     threshold: Annotated[float | None, typer.Option(min=0.0, max=1.0, help=THRESHOLD_HELP)] = None,
     windows: Windows = None,
     mirror: Mirror = None,
