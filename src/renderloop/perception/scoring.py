@@ -78,7 +78,7 @@ def match(detections: list[dict], truth: dict[int, tuple[int, int, int, int]]) -
     iou = box_iou(np.array([d["bbox"] for d in detections], dtype=float), np.array([truth[i] for i in ids], dtype=float))
     matched: dict[int, int] = {}
     for d in np.argsort([-d["score"] for d in detections], kind="stable"):
-        free = [j for j in np.argsort(-iou[d]) if iou[d, j] >= MATCH_IOU and ids[j] not in matched.values()]
+        free = [j for j in np.argsort(-iou[d], kind="stable") if iou[d, j] >= MATCH_IOU and ids[j] not in matched.values()]
         if free:
             matched[int(d)] = ids[free[0]]
     return matched

@@ -208,7 +208,9 @@ class PepperPlantGrower:
         candidates = np.concatenate(along)
         orders = np.concatenate([np.full(len(points), tube["order"]) for points, tube in zip(along, self.tubes)])
         distance = np.linalg.norm(candidates - node, axis=1) + 0.5 * np.maximum(candidates[:, 2] - node[2] - 0.02, 0.0)
-        ranked = np.argsort(distance)
+        # Stable: where two points tie (a shoot starts on a point of its parent), the older tube's comes first. numpy's
+        # default sort breaks ties by the SIMD instructions it runs on, which would grow another plant on another CPU.
+        ranked = np.argsort(distance, kind="stable")
         chosen = ranked[0]  # when nothing is clear: the nearest, as a real shoot pushes past what is in its way
         for k in ranked[:40]:
             middle = (candidates[k] + node) / 2 + np.array([0.0, 0.0, 0.01 + 0.15 * np.linalg.norm(node - candidates[k])])

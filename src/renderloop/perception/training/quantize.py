@@ -1,9 +1,9 @@
 """A detector quantized to 8-bit integers, for ONNX Runtime's integer kernels on the CPU.
 
-Static quantization (`onnxruntime.quantization`): each convolution's weights become int8, per output channel, and
-the activations between layers uint8, with each tensor's range measured once on calibration images: renders drawn
-from the training splits of datasets made by `renderloop dataset`, as the network sees them (the frame scaled to its
-input). The graph is written in operator form (QLinearConv and its kin), which ONNX Runtime runs on its integer
+Static quantization (`onnxruntime.quantization`): each convolution's weights become int8 (in 7 bits, so that no
+CPU's integer kernel overflows), per output channel, and the activations between layers uint8, with each tensor's
+range measured once on calibration images: renders drawn from the training splits of datasets made by `renderloop
+dataset`, as the network sees them (the frame scaled to its input). The graph is written in operator form (QLinearConv and its kin), which ONNX Runtime runs on its integer
 kernels. That pays for a network built as the EfficientNet-Lite family is, for integer use (ReLU6, no
 squeeze-excitation): about twice as fast on one core. MobileNetV3's hard-swish and squeeze-excitation stay in floating
 point between quantized convolutions, so it gains nothing (`docs/stages/perception.md`).
@@ -77,8 +77,11 @@ def quantize_detector(model: Path, frames: Sequence[np.ndarray], out: Path, cali
     with tempfile.TemporaryDirectory() as scratch, atomic_path(out) as tmp:
         prepared = Path(scratch) / "prepared.onnx"  # shapes inferred and the graph simplified, as quantizing needs
         quant_pre_process(str(model), str(prepared))
+        # reduce_range: weights in 7 bits. Without AVX-512 VNNI, ONNX Runtime multiplies uint8 by int8 with an
+        # instruction that sums each pair into 16 bits, which full-range weights overflow (255 x 127 x 2 > 32767): the
+        # model would detect on one CPU and find nothing on another.
         quantize_static(str(prepared), str(tmp), Inputs(), quant_format=QuantFormat.QOperator, per_channel=True,
-                        activation_type=QuantType.QUInt8, weight_type=QuantType.QInt8)
+                        reduce_range=True, activation_type=QuantType.QUInt8, weight_type=QuantType.QInt8)
         graph = onnx.load(str(tmp))
         del graph.metadata_props[:]  # the float model's, without what the quantizer's own passes added
         for key, value in {**onnx_metadata(model), QUANTIZED: f"int8, {calibration}"}.items():
