@@ -3,10 +3,11 @@
 Static quantization (`onnxruntime.quantization`): each convolution's weights become int8 (in 7 bits, so that no
 CPU's integer kernel overflows), per output channel, and the activations between layers uint8, with each tensor's
 range measured once on calibration images: renders drawn from the training splits of datasets made by `renderloop
-dataset`, as the network sees them (the frame scaled to its input). The graph is written in operator form (QLinearConv and its kin), which ONNX Runtime runs on its integer
-kernels. That pays for a network built as the EfficientNet-Lite family is, for integer use (ReLU6, no
-squeeze-excitation): about twice as fast on one core. MobileNetV3's hard-swish and squeeze-excitation stay in floating
-point between quantized convolutions, so it gains nothing (`docs/stages/perception.md`).
+dataset`, as the network sees them (the frame scaled to its input). The graph is written in operator form
+(QLinearConv and its kin), which ONNX Runtime runs on its integer kernels. That pays for a network built as the
+EfficientNet-Lite family is, for integer use (ReLU6, no squeeze-excitation): about twice as fast on one core.
+MobileNetV3's hard-swish and squeeze-excitation stay in floating point between quantized convolutions, so it gains
+nothing (`docs/stages/perception.md`).
 
 The quantized file keeps the float model's metadata and adds `quantized`; it detects like any renderloop model but
 cannot be fine-tuned: fine-tune the float model it was made from, then quantize again.
