@@ -18,6 +18,7 @@ from pathlib import Path
 from common import as_table, save_result
 
 from renderloop.config import Config
+from renderloop.errors import UserError
 from renderloop.perception.boxes import shorter_side
 from renderloop.perception.detector import Detector
 from renderloop.perception.scoring import findable, match
@@ -73,12 +74,28 @@ def main() -> None:
     parser.add_argument("--case", action="append", required=True, help="NAME=MODEL:WINDOWS:MIRROR[:MIN_BOX]")
     parser.add_argument("--name", default="detector_passes")
     args = parser.parse_args()
+    cases = []
+    for case in args.case:  # every case read, and its model opened, before minutes of measuring
+        name, _, spec = case.partition("=")
+        parts = spec.split(":")
+        if not name or len(parts) not in (3, 4) or parts[2] not in ("mirror", "none"):
+            parser.error(f"--case {case}: give NAME=MODEL:WINDOWS:MIRROR[:MIN_BOX], MIRROR mirror or none")
+        model, windows, mirror = parts[:3]
+        try:
+            min_box = float(parts[3]) if len(parts) == 4 else 0.0
+        except ValueError:
+            parser.error(f"--case {case}: MIN_BOX {parts[3]!r} is not a number of pixels")
+        try:
+            Detector(None if model == "shipped" else Path(model))
+            cases.append((name, model, windows, mirror, min_box, passes_label(windows, mirror, min_box)))
+        except UserError as error:  # no such model, not a detector, or windows that are not layouts
+            parser.error(f"--case {case}: {error}")
     records = []
-    for case in args.case:
-        name, spec = case.split("=", 1)
-        model, windows, mirror, *rest = spec.split(":")
-        min_box = float(rest[0]) if rest else 0.0
-        record = {"case": name, "passes": passes_label(windows, mirror, min_box), **measure(args.runs, model, windows, mirror, min_box)}
+    for name, model, windows, mirror, min_box, passes in cases:
+        try:
+            record = {"case": name, "passes": passes, **measure(args.runs, model, windows, mirror, min_box)}
+        except UserError as error:  # a run that is not a finished run; nothing is saved
+            parser.error(str(error))
         print(record, flush=True)
         records.append(record)
     columns = {"case": "model", "passes": "passes", "recall": "ripe recall", "false_pct": "false, %", "threshold": "threshold",
