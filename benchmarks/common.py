@@ -28,14 +28,26 @@ RESULTS_FOLDER = "RENDERLOOP_BENCHMARK_RESULTS"  # environment: another folder f
 RESULTS = Path(os.environ.get(RESULTS_FOLDER) or Path(__file__).resolve().parent / "results")
 
 
+# Vector instructions that set ONNX Runtime's and numba's speed: the widest registers (widest first) and the int8
+# dot product (VNNI), which ONNX Runtime's int8 kernels use where it exists. A timing compares beside the same set.
+SIMD_WIDTHS = ("avx512f", "avx2", "avx", "sse4_2", "asimd")
+SIMD_INT8 = ("avx512_vnni", "avx_vnni", "asimddp")
+
+
 def machine() -> str:
-    """The machine a figure was measured on, in words: CPU model, cores this process may use, memory."""
+    """The machine a figure was measured on, in words: CPU model, its widest vector instructions, cores this process
+    may use, memory."""
     model = platform.processor() or platform.machine()
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
+        info = Path("/proc/cpuinfo").read_text().splitlines()
+        for line in info:
             if line.startswith("model name"):
                 model = line.split(":", 1)[1].strip()
                 break
+        flags = next((set(line.split(":", 1)[1].split()) for line in info if line.startswith(("flags", "Features"))), set())
+        simd = [next((w for w in SIMD_WIDTHS if w in flags), None), next((d for d in SIMD_INT8 if d in flags), None)]
+        if any(simd):
+            model += f" ({', '.join(name for name in simd if name)})"
         memory_kb = next(int(line.split()[1]) for line in Path("/proc/meminfo").read_text().splitlines() if line.startswith("MemTotal"))
         memory = f", {memory_kb / 2**20:.0f} GiB"
     except (OSError, StopIteration, ValueError):

@@ -40,6 +40,14 @@ def test_resolved_config_round_trips_through_yaml(tmp_path: Path):
     assert load_resolved(path) == config
 
 
+def test_a_run_directory_config_written_with_a_removed_field_loads_as_the_same_config(tmp_path: Path):
+    config = load_config("demo", seed=11)
+    path = tmp_path / "config.yaml"
+    path.write_text(config.to_yaml().replace("detector:\n", "detector:\n  input_size: 320\n", 1))
+    assert "input_size: 320" in path.read_text()
+    assert load_resolved(path) == config
+
+
 @pytest.mark.parametrize(
     ("yaml_text", "message"),
     [
@@ -52,6 +60,7 @@ def test_resolved_config_round_trips_through_yaml(tmp_path: Path):
         ("camera:\n  clip: [5, 1]\n", "camera: clip: near must be smaller than far"),
         ("robot:\n  mass: .nan\n", "robot.mass"),
         ("detector:\n  windows: [2x2, 3x9]\n", "detector.windows.1"),
+        ("detector:\n  input_size: 448\n", "detector.input_size: no longer a setting (a detector runs at the input size"),
         ("- just\n- a list\n", "expected a mapping"),
         ("greenhouse: [unclosed\n", "not valid YAML"),
     ],

@@ -139,6 +139,10 @@ def config_schema() -> dict[str, Any]:
 
 PRESETS = ("demo", "paper", "greenhouse", "commercial")
 
+# Fields a config no longer has, and why. A user's file that sets one is told so in one line; a run directory's
+# config.yaml, written whole by an older version, loads without them (what they held was never read).
+REMOVED = {("detector", "input_size"): "a detector runs at the input size of its ONNX model"}
+
 
 def _read_yaml_mapping(text: str, source: str) -> dict[str, Any]:
     data = load_yaml(text, source)  # depth and size bounded before parsing: one line, never a RecursionError
@@ -177,7 +181,19 @@ def deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]
     return merged
 
 
-def validate(data: dict[str, Any], source: str | None) -> Config:
+def _without_removed(data: dict[str, Any], source: str | None, written: bool) -> dict[str, Any]:
+    for (section, key), why in REMOVED.items():
+        if isinstance(data.get(section), dict) and key in data[section]:
+            if not written:
+                found = f"{section}.{key}: no longer a setting ({why}); remove it"
+                raise UserError(f"{source}: {found}" if source else found)
+            data = {**data, section: {name: value for name, value in data[section].items() if name != key}}
+    return data
+
+
+def validate(data: dict[str, Any], source: str | None, written: bool = False) -> Config:
+    """`data` as a Config; `written`: a whole config a run directory holds, which may carry fields since removed."""
+    data = _without_removed(data, source, written)
     try:
         return Config.model_validate(data)
     except ValidationError as exc:
@@ -204,4 +220,4 @@ def load_config(preset: str = "demo", config_file: Path | None = None, seed: int
 
 def load_resolved(path: Path) -> Config:
     """Read a run directory's `config.yaml` (already complete, so no preset underneath)."""
-    return validate(read_config_file(path), str(path))
+    return validate(read_config_file(path), str(path), written=True)

@@ -21,7 +21,6 @@ def layout(text: str) -> Layout:
 
 class DetectorConfig(Strict):
     model: Path | None = Field(None, description="ONNX model; null means the one shipped in the package.")
-    input_size: Count(64, 2048) = Field(320, description="Side of the square network input, px.")
     score_threshold: Fraction = Field(0.68, description="Score a detection needs. Fused scores run higher than one "
                                       "pass's; the default is the lowest at which at most 5 % of the shipped model's "
                                       "detections on held-out paper runs are false, with the default windows and "
