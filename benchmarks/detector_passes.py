@@ -23,7 +23,8 @@ from renderloop.perception.boxes import shorter_side
 from renderloop.perception.detector import Detector
 from renderloop.perception.scoring import findable, match
 from renderloop.perception.threshold import choose, score_thresholds, search_run
-from renderloop.perception.tiling import layout_names, parse_layouts
+from renderloop.perception.tiling import all_windows, layout_names, parse_layouts
+from renderloop.render.frames import read_rgb_frame
 
 SIDES = ((20, 30), (30, 50), (50, 100), (100, None))  # px, the shorter side of a fruit's mask box at the frame's size
 BINS = [f"{low}-{high or 'up'}" for low, high in SIDES]
@@ -49,9 +50,8 @@ def recall_by_side(runs, threshold: float) -> dict[str, float]:
     return {name: round(f / t, 3) if t else None for name, f, t in zip([*BINS, "unripe"], found, total)}
 
 
-def passes_label(windows: str, mirror: str, min_box: float) -> str:
+def passes_label(layouts: list[str], mirror: str, min_box: float) -> str:
     """'frame, mirror, 2x2 and 3x2 windows[, boxes of 10 px and up]': what a case searches each frame with."""
-    layouts = layout_names(parse_layouts(windows))
     return ", ".join(["frame", *(["mirror"] if mirror == "mirror" else []), *([" and ".join(layouts) + " windows"] if layouts else []),
                       *([f"boxes of {min_box:g} px and up"] if min_box else [])])
 
@@ -61,10 +61,15 @@ def measure(run_dirs: list[Path], model: str, windows: str, mirror: str, min_box
                                                "min_box_px": min_box}}).detector
     detector = Detector(None if model == "shipped" else Path(model), threads=1)
     runs = [search_run(run_dir, detector, settings) for run_dir in run_dirs]
+    # The label names the layouts whose windows ran: `tiling` skips those the input would enlarge too much.
+    height, width = read_rgb_frame(run_dirs[0], 0).shape[:2]
+    searched = [name for name, layout in zip(settings.windows, settings.layouts)
+                if all_windows(width, height, [layout], detector.input_size)]
+    passes = passes_label(searched, mirror, min_box)
     chosen = choose(score_thresholds(runs), MAX_FALSE)
     if chosen is None:
-        return {"threshold": None, "recall": 0.0, "false_pct": None}
-    return {"threshold": chosen.threshold, "recall": round(chosen.recall, 3), "false_pct": round(100 * chosen.false_rate, 1),
+        return {"passes": passes, "threshold": None, "recall": 0.0, "false_pct": None}
+    return {"passes": passes, "threshold": chosen.threshold, "recall": round(chosen.recall, 3), "false_pct": round(100 * chosen.false_rate, 1),
             **recall_by_side(runs, chosen.threshold)}
 
 
@@ -87,13 +92,14 @@ def main() -> None:
             parser.error(f"--case {case}: MIN_BOX {parts[3]!r} is not a number of pixels")
         try:
             Detector(None if model == "shipped" else Path(model))
-            cases.append((name, model, windows, mirror, min_box, passes_label(windows, mirror, min_box)))
+            parse_layouts(windows)
+            cases.append((name, model, windows, mirror, min_box))
         except UserError as error:  # no such model, not a detector, or windows that are not layouts
             parser.error(f"--case {case}: {error}")
     records = []
-    for name, model, windows, mirror, min_box, passes in cases:
+    for name, model, windows, mirror, min_box in cases:
         try:
-            record = {"case": name, "passes": passes, **measure(args.runs, model, windows, mirror, min_box)}
+            record = {"case": name, **measure(args.runs, model, windows, mirror, min_box)}
         except UserError as error:  # a run that is not a finished run; nothing is saved
             parser.error(str(error))
         print(record, flush=True)
