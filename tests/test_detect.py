@@ -15,7 +15,7 @@ from renderloop.errors import UserError
 from renderloop.perception.detector import Detector
 from renderloop.perception.fruit_points import CENTRE_BEHIND_SKIN, MAX_RADIUS
 from renderloop.perception.stage import run_detect
-from renderloop.perception.threshold import ThresholdScore, choose, score_thresholds, search_run
+from renderloop.perception.threshold import THRESHOLDS, ThresholdScore, choose, format_scores, score_thresholds, search_run
 from renderloop.perception.training.ssd import export_onnx
 from renderloop.render.camera import read_camera_info
 from renderloop.render.frames import decode_depth, read_png
@@ -152,6 +152,14 @@ def test_a_threshold_scored_from_one_search_is_what_detect_gives_at_it(rendered:
             truth["ripe_found"], truth["ripe_findable"], truth["false_detections"], truth["detections_scored"])
 
 
+def test_the_search_scores_thresholds_above_0_99_and_prints_them_as_they_are_set():
+    assert THRESHOLDS[-1] == 0.999 and 0.992 in THRESHOLDS and list(THRESHOLDS) == sorted(set(THRESHOLDS))
+    scores = [ThresholdScore(t, 50, 100, 10 if t < 0.992 else 2, 60) for t in THRESHOLDS]  # false under 5 % from 0.992
+    chosen = choose(scores, 0.05)
+    table = format_scores(scores, chosen)
+    assert chosen.threshold == 0.992 and "0.992" in table and "<- chosen" in table and "1.00" not in table
+
+
 def test_the_chosen_threshold_is_the_lowest_within_the_false_share(rendered: Path, model: Path, monkeypatch, capsys):
     scores = [ThresholdScore(0.5, 90, 100, 12, 102), ThresholdScore(0.6, 88, 100, 5, 93), ThresholdScore(0.7, 80, 100, 2, 82),
               ThresholdScore(0.8, 0, 100, 0, 0)]  # nothing left to be false: not a choice
@@ -159,6 +167,6 @@ def test_the_chosen_threshold_is_the_lowest_within_the_false_share(rendered: Pat
     code, stdout, _ = cli(monkeypatch, capsys, "threshold", str(rendered), "--model", str(model), "--max-false", "1")
     assert code == 0 and "threshold: 0.10" in stdout and "<- chosen" in stdout
     code, _, stderr = cli(monkeypatch, capsys, "threshold", str(rendered), "--model", str(model), "--max-false", "0")
-    assert code == 2 and "no threshold up to 0.95 keeps false detections at or under 0.0%" in stderr
+    assert code == 2 and "no threshold up to 0.999 keeps false detections at or under 0.0%" in stderr
     code, _, stderr = cli(monkeypatch, capsys, "threshold", str(rendered / "rgb"))
     assert code == 2 and "missing" in stderr and "Traceback" not in stderr

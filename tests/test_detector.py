@@ -102,6 +102,19 @@ def test_a_model_exported_with_a_larger_input_keeps_its_default_boxes_sizes_in_p
     assert found and all(0 <= d.bbox[0] <= d.bbox[2] <= 640 and 0 <= d.bbox[1] <= d.bbox[3] <= 480 for d in found)
 
 
+def test_a_lower_match_iou_trains_a_fruit_from_more_default_boxes_and_the_smallest_fruit_from_its_best_one():
+    from torchvision.ops import box_iou
+
+    fruit = torch.tensor([[100.0, 100.0, 126.0, 126.0], [200.0, 40.0, 205.0, 45.0]])  # 26x26 px, and 5x5 px
+    learners = {}
+    for match_iou in (0.3, 0.5):
+        model = build_model("mobilenet-v3", pretrained=False, match_iou=match_iou).eval()
+        matched = model.proposal_matcher(box_iou(fruit, DecodedSSD(model).anchors))  # each default box's fruit, -1 none
+        learners[match_iou] = [int((matched == i).sum()) for i in range(len(fruit))]
+    assert learners[0.3][0] > learners[0.5][0] >= 2
+    assert learners[0.3][1] == learners[0.5][1] == 1  # under every default box's IoU threshold: its best box alone
+
+
 def test_learning_rate_warms_up_linearly_then_decays_to_zero_over_the_run():
     factor = _schedule(TrainSettings(epochs=2, warmup_steps=10), steps_per_epoch=25)
     rates = [factor(step) for step in range(50)]

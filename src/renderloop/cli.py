@@ -316,6 +316,7 @@ def train(
     photo_class: Annotated[str | None, Choice(CLASSES, "With --photos: the class of boxes whose category names no "
                                               "ripeness (a one-class set).")] = None,
     train_size: Annotated[int | None, _setting("train_size")] = None,
+    match_iou: Annotated[float | None, _setting("match_iou")] = None,
     input_size: Annotated[int | None, typer.Option(help="Square input of the exported model, px (a multiple of 32); "
                                                    "default the size it trains at. Given to a finished run, exports "
                                                    "its model again.")] = None,
@@ -332,7 +333,7 @@ def train(
         backbone = backbone_of_init(init)
     given = {"epochs": epochs, "batch_size": batch_size, "learning_rate": learning_rate, "warmup_steps": warmup_steps,
              "seed": seed, "backbone": backbone, "frozen_layers": frozen_layers,
-             "cached_copies": cached_copies, "train_size": train_size}
+             "cached_copies": cached_copies, "train_size": train_size, "match_iou": match_iou}
     settings = checked(TrainSettings, "train", **{name: value for name, value in given.items() if value is not None})
     own = Photos(photos, coco, photo_class) if photos is not None else None
     record = train_detector(dataset_dirs or [], out, settings, device, loader_workers, log=lambda line: typer.echo(line, err=True),
@@ -428,7 +429,7 @@ def choose_threshold(
 ) -> None:
     """Choose the detector's score threshold on rendered runs: the lowest with at most --max-false of its detections false."""
     from renderloop.perception.detector import Detector
-    from renderloop.perception.threshold import choose, format_scores, score_thresholds, search_run
+    from renderloop.perception.threshold import choose, format_scores, score_thresholds, search_run, threshold_text
 
     settings = _photo_detector(_detector_options(model, None, windows, mirror, min_box))
     detector = Detector(settings.model)
@@ -438,9 +439,10 @@ def choose_threshold(
     chosen = choose(scores, max_false)
     typer.echo(format_scores(scores, chosen))
     if chosen is None:
-        raise UserError(f"no threshold up to {scores[-1].threshold:.2f} keeps false detections at or under {max_false:.1%}")
-    typer.echo(f"threshold: {chosen.threshold:.2f} (recall {chosen.recall:.3f}, {chosen.false_rate:.1%} false); "
-               f"set detector.score_threshold or pass renderloop detect --threshold {chosen.threshold:.2f}")
+        raise UserError(f"no threshold up to {threshold_text(scores[-1].threshold)} keeps false detections at or under {max_false:.1%}")
+    text = threshold_text(chosen.threshold)
+    typer.echo(f"threshold: {text} (recall {chosen.recall:.3f}, {chosen.false_rate:.1%} false); "
+               f"set detector.score_threshold or pass renderloop detect --threshold {text}")
 
 
 @app.command()

@@ -24,6 +24,7 @@ DEFAULT_BACKBONE = EFFICIENTNET_LITE0
 INPUT_SIZE = 320  # px a side: the square input a network trains at unless told, and torchvision's SSDlite's
 INPUT_SIZES = range(160, 1281, 32)  # the square inputs a network trains at or is exported with (its stride is 32)
 SIZE_RULE = f"a multiple of {INPUT_SIZES.step} from {INPUT_SIZES[0]} to {INPUT_SIZES[-1]} px"  # what a bad size is told
+MATCH_IOU = 0.5  # torchvision SSD's IoU from which a default box learns a labelled box, the default of match_iou
 DEVICES = ("auto", "cpu", "cuda")  # where `renderloop train` runs; auto: cuda when torch finds one
 
 
@@ -56,6 +57,10 @@ class TrainSettings(Strict):
     train_size: Count(INPUT_SIZES[0], INPUT_SIZES[-1]) = Field(
         INPUT_SIZE, description="Square input the network trains at, px, a multiple of 32: larger shows small fruit "
         "larger, at about the square of the cost a step and a pass. Its default boxes keep their sizes in pixels.")
+    match_iou: Real(0.1, 0.9) = Field(
+        MATCH_IOU, description="IoU with a labelled box from which a default box learns that fruit, its class and its "
+        "box; the others learn background, and each fruit's best default box learns it at any IoU. Lower: more default "
+        "boxes learn each fruit, among them those over the visible part of a fruit a leaf hides in part.")
     max_steps: Count(1, 10**9) | None = Field(None, description="Stop after this many steps in all (tests); the schedule "
                                               "still spans the epochs. null: train every epoch.")
 

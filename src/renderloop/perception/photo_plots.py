@@ -15,6 +15,7 @@ from PIL import Image, ImageDraw
 from renderloop.io.atomic import atomic_path
 from renderloop.perception.photo_score import ClassScore, PhotoScore, Searched, match
 from renderloop.perception.sheet import COLORS
+from renderloop.perception.threshold import threshold_text
 
 CURVE_COLOR = {None: "k", "ripe": "red", "unripe": "green"}
 MARKED_THRESHOLDS = (0.1, 0.3, 0.5, 0.7, 0.9)
@@ -41,11 +42,11 @@ def _curve(axes, score: ClassScore, label: str | None) -> None:
     here = score.at_threshold
     if here.precision is not None and here.recall is not None:
         axes.plot(here.recall, here.precision, "o", ms=10, mfc="none", mec=color, mew=2,
-                  label=f"{name} at {here.threshold:.2f}: recall {here.recall:.3f}, precision {here.precision:.3f}")
+                  label=f"{name} at {threshold_text(here.threshold)}: recall {here.recall:.3f}, precision {here.precision:.3f}")
     best = score.best_f1
     if best.precision is not None and best.recall is not None and best.f1 > 0:
         axes.plot(best.recall, best.precision, "*", ms=11, color=color, mec="k", mew=0.5,
-                  label=f"{name} best F1 {best.f1:.3f} at {best.threshold:.2f}")
+                  label=f"{name} best F1 {best.f1:.3f} at {threshold_text(best.threshold)}")
 
 
 def draw_pr_curve(record: PhotoScore, path: Path) -> None:

@@ -6,7 +6,7 @@ down to PASS_FLOOR. Matching is one-to-one and greedy, highest score first, at I
 (the rule of COCOeval): a higher threshold only drops the lowest-scoring boxes, and the boxes
 above it meet the labelled boxes in the same order as before, so each detection's match at the
 floor is its match at every threshold above it, and the whole recall/precision curve
-(PASS_FLOOR..0.95) is scored from the one search.
+(THRESHOLDS, PASS_FLOOR..0.999) is scored from the one search.
 
 Scores are class-agnostic (any detection on any labelled box); when every category of the
 labels names a ripeness (ripe/unripe, or red/yellow/orange for ripe and green for unripe) they
@@ -41,7 +41,7 @@ from renderloop.io.atomic import write_json
 from renderloop.io.images import check_image, read_image
 from renderloop.perception.boxes import box_iou
 from renderloop.perception.detector import CLASSES, PASS_FLOOR, Detection, Detector
-from renderloop.perception.threshold import THRESHOLDS
+from renderloop.perception.threshold import THRESHOLDS, threshold_text
 from renderloop.perception.tiling import layout_names
 
 MATCH_IOU = 0.5
@@ -423,8 +423,8 @@ def summary(record: PhotoScore) -> list[str]:
     scores = [("", record.class_agnostic), *((f"{label} ", s) for label, s in (record.by_class or {}).items())]
     for name, s in scores:
         f, best = s.at_threshold, s.best_f1
-        lines.append(f"{name}at threshold {f.threshold:.2f}: recall {_ratio(f.recall)} ({f.true_positives}/{s.boxes}), "
+        lines.append(f"{name}at threshold {threshold_text(f.threshold)}: recall {_ratio(f.recall)} ({f.true_positives}/{s.boxes}), "
                      f"precision {_ratio(f.precision)} ({f.true_positives}/{f.true_positives + f.false_positives}), "
-                     f"F1 {f.f1:.3f}; AP@0.5 {_ratio(s.ap50)}; best F1 {best.f1:.3f} at {best.threshold:.2f} "
+                     f"F1 {f.f1:.3f}; AP@0.5 {_ratio(s.ap50)}; best F1 {best.f1:.3f} at {threshold_text(best.threshold)} "
                      f"(recall {_ratio(best.recall)}, precision {_ratio(best.precision)})")
     return lines

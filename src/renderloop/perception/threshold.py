@@ -25,7 +25,15 @@ from renderloop.render.frames import read_png, read_rgb_frame
 from renderloop.rundir import files, names
 from renderloop.scene.model import Scene, read_scene
 
-THRESHOLDS = tuple(round(t, 2) for t in np.arange(PASS_FLOOR, 0.96, 0.01))  # below the floor, the search keeps no fused box
+# Every 0.01 from the floor (below it the search keeps no fused box) to 0.99, then every 0.001: a model trained with a
+# low match IoU (`train --match-iou`) scores its boxes so near 1 that the 5 % rule's threshold can lie above 0.99.
+THRESHOLDS = (tuple(round(t, 2) for t in np.arange(PASS_FLOOR, 0.995, 0.01))
+              + tuple(round(t, 3) for t in np.arange(0.991, 0.9995, 0.001)))
+
+
+def threshold_text(threshold: float) -> str:
+    """A threshold as it is set: two decimals on the 0.01 grid (0.68), three above 0.99 (0.992)."""
+    return f"{threshold:.2f}" if round(threshold, 2) == threshold else f"{threshold:.3f}"
 
 Progress = Callable[[int, int], None]
 NEEDS = (names.SCENE, names.POSES, names.frames_index(names.RGB))  # what the search reads: a rendered run
@@ -94,11 +102,12 @@ def choose(scores: Sequence[ThresholdScore], max_false: float) -> ThresholdScore
 
 
 def format_scores(scores: Sequence[ThresholdScore], chosen: ThresholdScore | None) -> str:
-    """Every 0.05 of the sweep and the chosen threshold, as a table."""
-    shown = [s for s in scores if round(s.threshold * 100) % 5 == 0 or s == chosen]
+    """Every 0.05 of the sweep, its last threshold and the chosen one, as a table."""
+    shown = [s for s in scores if (round(s.threshold, 2) == s.threshold and round(s.threshold * 100) % 5 == 0)
+             or s == chosen or s == scores[-1]]
     lines = [f"{'score':>6} {'ripe recall':>12} {'found':>12} {'false':>7} {'false boxes':>12}"]
     for s in shown:
         mark = "  <- chosen" if s == chosen else ""
-        lines.append(f"{s.threshold:>6.2f} {s.recall:>12.3f} {f'{s.found}/{s.findable}':>12} {s.false_rate:>7.1%} "
+        lines.append(f"{threshold_text(s.threshold):>6} {s.recall:>12.3f} {f'{s.found}/{s.findable}':>12} {s.false_rate:>7.1%} "
                      f"{f'{s.false}/{s.detections}':>12}{mark}")
     return "\n".join(lines)

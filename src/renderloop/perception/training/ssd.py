@@ -34,7 +34,7 @@ from torchvision.models.detection.ssd import SSD
 from torchvision.models.detection.ssdlite import SSDLiteHead
 from torchvision.models.detection.transform import GeneralizedRCNNTransform
 
-from renderloop.config.training import BACKBONES, DEFAULT_BACKBONE, EFFICIENTNET_LITE0_S8, MOBILENET_V3
+from renderloop.config.training import BACKBONES, DEFAULT_BACKBONE, EFFICIENTNET_LITE0_S8, MATCH_IOU, MOBILENET_V3
 from renderloop.perception.training.backbones import NORM, lite0_extractor
 
 OPSET = 17
@@ -64,10 +64,12 @@ def default_boxes(input_size: int, backbone: str = DEFAULT_BACKBONE) -> DefaultB
     return DefaultBoxGenerator([[2, 3] for _ in scales[1:]], scales=[s * INPUT_SIZE / input_size for s in scales])
 
 
-def build_model(backbone: str = DEFAULT_BACKBONE, pretrained: bool = True, train_size: int = INPUT_SIZE) -> nn.Module:
+def build_model(backbone: str = DEFAULT_BACKBONE, pretrained: bool = True, train_size: int = INPUT_SIZE,
+                match_iou: float = MATCH_IOU) -> nn.Module:
     """The detector over `backbone`, training at a `train_size` square input; `pretrained` loads the backbone's
     ImageNet weights where it has them (weights loaded afterwards, from a checkpoint or an ONNX model, make it moot).
-    Its weights are those of any size: only the input transform and the grid of default boxes depend on it."""
+    Its weights are those of any size: only the input transform and the grid of default boxes depend on it.
+    `match_iou` is the IoU with a labelled box from which a default box trains on it (training only)."""
     anchors, size = default_boxes(train_size, backbone), (train_size, train_size)
     if backbone == MOBILENET_V3:
         model = ssdlite320_mobilenet_v3_large(weights=None, weights_backbone=None, num_classes=len(CLASSES) + 1)
@@ -79,6 +81,7 @@ def build_model(backbone: str = DEFAULT_BACKBONE, pretrained: bool = True, train
         channels = det_utils.retrieve_out_channels(extractor, size)
         head = SSDLiteHead(channels, anchors.num_anchors_per_location(), len(CLASSES) + 1, NORM)
         model = SSD(extractor, anchors, size, len(CLASSES) + 1, head=head, **SSD_SETTINGS)
+    model.proposal_matcher = det_utils.SSDMatcher(match_iou)
     model.renderloop_backbone = backbone  # what the exported model's metadata names
     return model
 

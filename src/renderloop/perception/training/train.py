@@ -186,7 +186,8 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
         collate_fn=collate, num_workers=workers, persistent_workers=workers > 0,
         generator=torch.Generator().manual_seed(settings.seed),
     )
-    model = build_model(settings.backbone, pretrained=init is None, train_size=settings.train_size)
+    model = build_model(settings.backbone, pretrained=init is None, train_size=settings.train_size,
+                        match_iou=settings.match_iou)
     frozen_norms = init is not None and Path(init).suffix == ".onnx"  # its batch norms are folded: keep them as they are
     if init is not None:
         model.load_state_dict(_initial_weights(Path(init), model, settings.backbone))
