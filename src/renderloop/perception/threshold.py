@@ -103,8 +103,7 @@ def choose(scores: Sequence[ThresholdScore], max_false: float) -> ThresholdScore
 
 def format_scores(scores: Sequence[ThresholdScore], chosen: ThresholdScore | None) -> str:
     """Every 0.05 of the sweep, its last threshold and the chosen one, as a table."""
-    shown = [s for s in scores if (round(s.threshold, 2) == s.threshold and round(s.threshold * 100) % 5 == 0)
-             or s == chosen or s == scores[-1]]
+    shown = [s for s in scores if round(s.threshold * 1000) % 50 == 0 or s == chosen or s == scores[-1]]
     lines = [f"{'score':>6} {'ripe recall':>12} {'found':>12} {'false':>7} {'false boxes':>12}"]
     for s in shown:
         mark = "  <- chosen" if s == chosen else ""
