@@ -11,6 +11,7 @@ import onnx
 import pytest
 import torch
 
+from renderloop.config.training import MATCH_IOU
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_json
 from renderloop.perception.boxes import nms
@@ -113,6 +114,22 @@ def test_a_lower_match_iou_trains_a_fruit_from_more_default_boxes_and_the_smalle
         learners[match_iou] = [int((matched == i).sum()) for i in range(len(fruit))]
     assert learners[0.3][0] > learners[0.5][0] >= 2
     assert learners[0.3][1] == learners[0.5][1] == 1  # under every default box's IoU threshold: its best box alone
+
+
+def test_a_checkpoint_from_before_match_iou_existed_resumes_only_at_torchvisions_0_5(tiny_dataset: Path, tmp_path: Path):
+    out = tmp_path / "old.onnx"
+    settings = TrainSettings(epochs=2, batch_size=4, warmup_steps=1, backbone="mobilenet-v3", match_iou=0.5)
+    train_detector(tiny_dataset, out, TrainSettings(**{**settings.model_dump(), "max_steps": 2}), device="cpu", workers=0,
+                   log=lambda _: None)
+    state = torch.load(out.with_suffix(".ckpt"), weights_only=True)
+    del state["record"]["settings"]["match_iou"]  # as a checkpoint written before the setting was
+    torch.save(state, out.with_suffix(".ckpt"))
+    with pytest.raises(UserError, match="other settings"):  # today's default is not what it trained with
+        train_detector(tiny_dataset, out, TrainSettings(**{**settings.model_dump(), "match_iou": MATCH_IOU}), device="cpu",
+                       workers=0, log=lambda _: None)
+    logged = []
+    record = train_detector(tiny_dataset, out, settings, device="cpu", workers=0, log=logged.append)
+    assert logged[0].startswith("resuming after epoch 1") and [e["epoch"] for e in record["history"]] == [1, 2]
 
 
 def test_learning_rate_warms_up_linearly_then_decays_to_zero_over_the_run():

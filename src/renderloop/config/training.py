@@ -24,7 +24,10 @@ DEFAULT_BACKBONE = EFFICIENTNET_LITE0
 INPUT_SIZE = 320  # px a side: the square input a network trains at unless told, and torchvision's SSDlite's
 INPUT_SIZES = range(160, 1281, 32)  # the square inputs a network trains at or is exported with (its stride is 32)
 SIZE_RULE = f"a multiple of {INPUT_SIZES.step} from {INPUT_SIZES[0]} to {INPUT_SIZES[-1]} px"  # what a bad size is told
-MATCH_IOU = 0.5  # torchvision SSD's IoU from which a default box learns a labelled box, the default of match_iou
+MATCH_IOU = 0.4  # the IoU from which a default box learns a labelled box, the default of match_iou
+# What a checkpoint that predates a setting trained with, where that is not the setting's default now: torchvision
+# SSD's match IoU of 0.5 until match_iou existed
+PREDATED = {"match_iou": 0.5}
 DEVICES = ("auto", "cpu", "cuda")  # where `renderloop train` runs; auto: cuda when torch finds one
 
 
@@ -60,7 +63,8 @@ class TrainSettings(Strict):
     match_iou: Real(0.1, 0.9) = Field(
         MATCH_IOU, description="IoU with a labelled box from which a default box learns that fruit, its class and its "
         "box; the others learn background, and each fruit's best default box learns it at any IoU. Lower: more default "
-        "boxes learn each fruit, among them those over the visible part of a fruit a leaf hides in part.")
+        "boxes learn each fruit, among them those over the visible part of a fruit a leaf hides in part. torchvision's "
+        "SSD: 0.5.")
     max_steps: Count(1, 10**9) | None = Field(None, description="Stop after this many steps in all (tests); the schedule "
                                               "still spans the epochs. null: train every epoch.")
 

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from renderloop.config.training import INPUT_SIZES, MOBILENET_V3, SIZE_RULE, TrainSettings
+from renderloop.config.training import INPUT_SIZES, MOBILENET_V3, PREDATED, SIZE_RULE, TrainSettings
 from renderloop.errors import UserError
 from renderloop.io.atomic import atomic_path, write_json
 from renderloop.perception.detector import CLASSES
@@ -206,8 +206,8 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
     start_epoch = 0
     if checkpoint_path.is_file():
         state = _load_checkpoint(checkpoint_path, run_device)
-        # a checkpoint written before a setting existed trained with its default
-        recorded = {**TrainSettings().model_dump(exclude={"max_steps"}), **state["record"]["settings"]}
+        # a checkpoint written before a setting existed trained with its default then
+        recorded = {**TrainSettings().model_dump(exclude={"max_steps"}), **PREDATED, **state["record"]["settings"]}
         if recorded != record["settings"] or state["record"]["train_images"] != len(train_set):
             raise UserError(f"{checkpoint_path}: a checkpoint of other settings or data; delete it to start over")
         model.load_state_dict(state["model"])
