@@ -11,7 +11,7 @@ import onnx
 import pytest
 import torch
 
-from renderloop.config.training import MATCH_IOU
+from renderloop.config.training import PREDATED
 from renderloop.errors import UserError
 from renderloop.io.atomic import write_json
 from renderloop.perception.boxes import nms
@@ -19,7 +19,7 @@ from renderloop.perception.detector import Detector, postprocess, to_input
 from renderloop.perception.training.ssd import DecodedSSD, build_model, export_onnx
 from renderloop.perception.training.torch_support import import_torchvision
 from renderloop.perception.training import train as train_module
-from renderloop.perception.training.train import TrainSettings, _schedule, train_detector
+from renderloop.perception.training.train import TrainSettings, _schedule, backbone_of_init, train_detector
 
 from conftest import cli, jittered_model
 
@@ -116,17 +116,21 @@ def test_a_lower_match_iou_trains_a_fruit_from_more_default_boxes_and_the_smalle
     assert learners[0.3][1] == learners[0.5][1] == 1  # under every default box's IoU threshold: its best box alone
 
 
-def test_a_checkpoint_from_before_match_iou_existed_resumes_only_at_torchvisions_0_5(tiny_dataset: Path, tmp_path: Path):
+def test_a_checkpoint_from_before_a_setting_existed_resumes_only_at_what_it_trained_with(tiny_dataset: Path,
+                                                                                          tmp_path: Path):
     out = tmp_path / "old.onnx"
-    settings = TrainSettings(epochs=2, batch_size=4, warmup_steps=1, backbone="mobilenet-v3", match_iou=0.5)
+    settings = TrainSettings(epochs=2, batch_size=4, warmup_steps=1, **PREDATED)
     train_detector(tiny_dataset, out, TrainSettings(**{**settings.model_dump(), "max_steps": 2}), device="cpu", workers=0,
                    log=lambda _: None)
     state = torch.load(out.with_suffix(".ckpt"), weights_only=True)
-    del state["record"]["settings"]["match_iou"]  # as a checkpoint written before the setting was
+    for name in PREDATED:  # as a checkpoint written before the settings were
+        del state["record"]["settings"][name]
     torch.save(state, out.with_suffix(".ckpt"))
-    with pytest.raises(UserError, match="other settings"):  # today's default is not what it trained with
-        train_detector(tiny_dataset, out, TrainSettings(**{**settings.model_dump(), "match_iou": MATCH_IOU}), device="cpu",
-                       workers=0, log=lambda _: None)
+    assert backbone_of_init(out.with_suffix(".ckpt")) == PREDATED["backbone"]
+    for name in PREDATED:  # today's default is not what it trained with
+        with pytest.raises(UserError, match="other settings"):
+            train_detector(tiny_dataset, out, TrainSettings(**{**settings.model_dump(), name: TrainSettings().model_dump()[name]}),
+                           device="cpu", workers=0, log=lambda _: None)
     logged = []
     record = train_detector(tiny_dataset, out, settings, device="cpu", workers=0, log=logged.append)
     assert logged[0].startswith("resuming after epoch 1") and [e["epoch"] for e in record["history"]] == [1, 2]

@@ -25,9 +25,10 @@ INPUT_SIZE = 320  # px a side: the square input a network trains at unless told,
 INPUT_SIZES = range(160, 1281, 32)  # the square inputs a network trains at or is exported with (its stride is 32)
 SIZE_RULE = f"a multiple of {INPUT_SIZES.step} from {INPUT_SIZES[0]} to {INPUT_SIZES[-1]} px"  # what a bad size is told
 MATCH_IOU = 0.4  # the IoU from which a default box learns a labelled box, the default of match_iou
-# What a checkpoint that predates a setting trained with, where that is not the setting's default now: torchvision
-# SSD's match IoU of 0.5 until match_iou existed
-PREDATED = {"match_iou": 0.5}
+# What a checkpoint that predates a setting trained with, where that is not the setting's default now: the
+# random-weights MobileNetV3 until there was a choice of backbone, every layer learning until frozen_layers existed,
+# torchvision SSD's match IoU of 0.5 until match_iou did
+PREDATED = {"backbone": MOBILENET_V3, "frozen_layers": 0, "match_iou": 0.5}
 DEVICES = ("auto", "cpu", "cuda")  # where `renderloop train` runs; auto: cuda when torch finds one
 
 

@@ -136,7 +136,7 @@ def backbone_of_init(path: Path) -> str:
         record = torch.load(path, map_location="cpu", weights_only=True)["record"]
     except (OSError, RuntimeError, KeyError, TypeError, EOFError, pickle.UnpicklingError) as error:
         raise UserError(f"--init {path}: not a renderloop training checkpoint ({type(error).__name__})") from None
-    return record.get("settings", {}).get("backbone", MOBILENET_V3)
+    return record.get("settings", {}).get("backbone", PREDATED["backbone"])
 
 
 @dataclass(frozen=True)
