@@ -52,8 +52,8 @@ def test_the_detector_from_imagenet_weights_is_the_same_network_every_time():
     for (name, a), b in zip(first.state_dict().items(), second.state_dict().values()):
         assert torch.equal(a, b), name
     loaded = torch.load(lite0_checkpoint(), map_location="cpu", weights_only=True)
-    assert torch.equal(first.backbone.features[0][0][0].weight, loaded["_conv_stem.weight"])  # stride 16 tap's network
-    assert torch.equal(first.backbone.features[1][-1][0].weight, loaded["_conv_head.weight"])  # the stride 32 end
+    assert torch.equal(first.backbone.features[0][0][0].weight, loaded["_conv_stem.weight"])  # the stem, in the first part
+    assert torch.equal(first.backbone.features[-1][-1][0].weight, loaded["_conv_head.weight"])  # the stride 32 end
 
 
 def test_a_strided_layer_pads_as_tensorflow_did_one_pixel_less_before_than_after():
@@ -95,7 +95,7 @@ def test_an_unknown_backbone_is_refused_listing_the_choices(monkeypatch, capsys,
 
 def test_an_exported_model_names_its_backbone_and_fine_tuning_it_keeps_that_backbone(tmp_path: Path):
     lite, mobile = tmp_path / "lite.onnx", tmp_path / "mobile.onnx"
-    export_onnx(jittered_model(1), lite)
+    export_onnx(jittered_model(1, "efficientnet-lite0"), lite)
     export_onnx(build_model("mobilenet-v3").eval(), mobile)
     assert backbone_of_init(lite) == "efficientnet-lite0" and backbone_of_init(mobile) == "mobilenet-v3"
     names = {entry.key: entry.value for entry in onnx.load(str(lite)).metadata_props}
@@ -113,7 +113,7 @@ def test_a_detector_on_one_backbone_is_not_fine_tuned_as_another(tiny_dataset: P
 def test_the_pretrained_layers_learn_at_their_fraction_of_the_rate(tiny_dataset: Path, tmp_path: Path):
     settings = TrainSettings(epochs=1, batch_size=4, warmup_steps=1, max_steps=1, learning_rate=1e-3, backbone_lr_factor=0.1)
     record = train_detector(tiny_dataset, tmp_path / "m.onnx", settings, device="cpu", workers=0, log=lambda _: None)
-    assert record["settings"]["backbone"] == "efficientnet-lite0" and record["settings"]["backbone_lr_factor"] == 0.1
+    assert record["settings"]["backbone"] == "efficientnet-lite0-s8" and record["settings"]["backbone_lr_factor"] == 0.1
     state = torch.load(tmp_path / "m.ckpt", weights_only=True)
     groups = state["optimizer"]["param_groups"]
     assert len(groups) == 2 and groups[0]["initial_lr"] == pytest.approx(1e-4) and groups[1]["initial_lr"] == pytest.approx(1e-3)

@@ -127,9 +127,11 @@ def test_a_checkpoint_from_before_a_setting_existed_resumes_only_at_what_it_trai
         del state["record"]["settings"][name]
     torch.save(state, out.with_suffix(".ckpt"))
     assert backbone_of_init(out.with_suffix(".ckpt")) == PREDATED["backbone"]
-    for name in PREDATED:  # today's default is not what it trained with
-        with pytest.raises(UserError, match="other settings"):
-            train_detector(tiny_dataset, out, TrainSettings(**{**settings.model_dump(), name: TrainSettings().model_dump()[name]}),
+    for name in PREDATED:  # today's default is not what it trained with, and the refusal names the option
+        today = TrainSettings().model_dump()[name]
+        with pytest.raises(UserError, match=rf"other settings or data \(--{name.replace('_', '-')} {PREDATED[name]} "
+                                            rf"\(this run: {today}\)\); give the same to resume it"):
+            train_detector(tiny_dataset, out, TrainSettings(**{**settings.model_dump(), name: today}),
                            device="cpu", workers=0, log=lambda _: None)
     logged = []
     record = train_detector(tiny_dataset, out, settings, device="cpu", workers=0, log=logged.append)
@@ -233,7 +235,7 @@ def test_fine_tuning_starts_from_an_onnx_detector_whose_batch_norms_are_folded(t
         assert np.allclose(got, want, atol=1e-3)
     other = tmp_path / "other.onnx"
     onnx.save(onnx.helper.make_model(onnx.helper.make_graph([], "empty", [], [])), str(other))
-    with pytest.raises(UserError, match="other.onnx: 0 convolutions where the detector has 85"):
+    with pytest.raises(UserError, match="other.onnx: 0 convolutions where the detector has 89"):
         train_detector(tiny_dataset, tmp_path / "x.onnx", still, device="cpu", workers=0, log=lambda _: None, init=other)
 
 

