@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from renderloop.dataset.build import build_dataset
-from renderloop.dataset.labels import MIN_SIDE, pepper_boxes, pepper_vertices
+from renderloop.dataset.labels import MIN_SIDE, MIN_VISIBLE, ignore_reason, pepper_boxes, pepper_vertices
 from renderloop.config.dataset import DatasetSpec
 from renderloop.dataset.scenes import FORMAT_VERSION, dataset_scene
 from renderloop.dataset.views import random_view
@@ -17,6 +17,7 @@ from renderloop.errors import UserError
 from renderloop.render.camera import Intrinsics
 from renderloop.render.raster import RasterRenderer
 from renderloop.io.ownership import LEDGER, read_ledger
+from renderloop.perception.scoring import MIN_SIDE as FINDABLE
 
 TINY = DatasetSpec(seed=3, width=64, height=48, views_per_scene=2, samples=(1,), val_every=2)
 
@@ -169,6 +170,27 @@ def test_build_resumes_grows_and_is_reproducible(tmp_path: Path):
         assert w > 0 and h > 0 and x + w <= 64 and y + h <= 48 and ann["category_id"] in (1, 2)
     assert (whole / "preview.png").is_file()
     assert not list(whole.rglob(".*.partial"))
+
+
+def test_a_hidden_fruit_is_a_target_once_the_scoring_would_ask_for_it_and_a_set_of_the_old_rule_is_relabelled(tmp_path: Path):
+    hidden = MIN_VISIBLE / 2
+    assert ignore_reason((0, 0, MIN_SIDE - 1, 40), 1.0, MIN_SIDE) == "tiny"
+    assert ignore_reason((0, 0, FINDABLE - 1, 40), hidden, MIN_SIDE) == "occluded"  # a few pixels of a fruit: no target
+    assert ignore_reason((0, 0, FINDABLE, 40), hidden, MIN_SIDE) is None  # findable in a scored frame, so a target
+    assert ignore_reason((0, 0, FINDABLE - 1, 40), MIN_VISIBLE, MIN_SIDE) is None
+    # a set labelled by the earlier rule (every fruit under MIN_VISIBLE ignored) follows this one when built again
+    build_dataset(tmp_path, 2, TINY)
+    images = _files(tmp_path / "images")
+    label = tmp_path / "labels" / "000000.json"
+    record = json.loads(label.read_text())
+    old = {"pepper_id": 10**6, "bbox": [1, 2, 1 + FINDABLE, 3 + FINDABLE], "label": "ripe", "pixels": 90, "visible_fraction": hidden,
+           "ignore": "occluded"}
+    label.write_text(json.dumps({**record, "peppers": record["peppers"] + [old]}))
+    assert build_dataset(tmp_path, 2, TINY) == 0  # nothing rendered again
+    assert json.loads(label.read_text())["peppers"][-1] == {**old, "ignore": None}
+    coco = json.loads((tmp_path / "annotations" / "instances_train.json").read_text())
+    assert [a["iscrowd"] for a in coco["annotations"] if a["pepper_id"] == 10**6] == [0]
+    assert _files(tmp_path / "images") == images
 
 
 def test_a_dataset_of_other_settings_is_not_mixed(tmp_path: Path):

@@ -24,7 +24,7 @@ from PIL import Image
 
 from renderloop.dataset.clutter import clutter_objects, standing_boards
 from renderloop.dataset.coco import write_coco
-from renderloop.dataset.labels import neighbour_fruit_boxes, pepper_boxes, pepper_vertices
+from renderloop.dataset.labels import neighbour_fruit_boxes, pepper_boxes, pepper_vertices, relabelled
 from renderloop.dataset.preview import draw_preview
 from renderloop.dataset.picked import picked_fruit
 from renderloop.config.dataset import DatasetSpec
@@ -172,7 +172,13 @@ def build_dataset(out: Path, images: int, spec: DatasetSpec, executor: Executor 
         rendered += len(batch)
         if progress:
             progress(done + rendered, images)
-    records = [json.loads((out / "labels" / image_name(i, "json")).read_text(encoding="utf-8")) for i in range(images)]
+    records = []
+    for i in range(images):
+        path = out / "labels" / image_name(i, "json")
+        record = json.loads(path.read_text(encoding="utf-8"))
+        if (current := relabelled(record)) != record:  # labelled by an earlier rule: the images stand, the labels follow
+            write_json(path, current)
+        records.append(current)
     write_coco(out / "annotations", records)
     draw_preview(out, records[:24], out / PREVIEW)
     return rendered

@@ -2,12 +2,14 @@
 
 A box is the extent of the pepper's mask pixels (pixel edges: x1 = last column + 1).
 Two kinds of fruit are kept as `ignore` instead of labels: tiny ones (a side under
-MIN_SIDE pixels) that no detector at 320 px can be asked to find, and fruit mostly
+MIN_SIDE pixels) that no detector at 320 px can be asked to find, and small fruit mostly
 hidden behind leaves (under MIN_VISIBLE of the silhouette that would be in the image
-without occluders), whose few pixels do not look like a pepper. torchvision's SSD
-has no ignore regions, so training simply does not make them targets; the COCO
-files mark them iscrowd, which COCO evaluation ignores. Fruit cut by the image border are not occluded: the silhouette is clipped
-to the image first.
+without occluders), whose few pixels do not look like a pepper. A hidden fruit whose
+visible part spans the scoring's findable size (`perception.scoring.MIN_SIDE` a side)
+is a target all the same: the scoring asks for it, so training must (`ignore_reason`).
+torchvision's SSD has no ignore regions, so training simply does not make ignored fruit
+targets; the COCO files mark them iscrowd, which COCO evaluation ignores. Fruit cut by
+the image border are not occluded: the silhouette is clipped to the image first.
 
 The neighbouring rows' fruit are real peppers in the picture too, labelled by the same
 rules (`neighbour_fruit_boxes`); left unlabelled they would teach the detector that a
@@ -17,11 +19,14 @@ are told apart by their copies' projected meshes and the frame's depth.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from matplotlib.path import Path as PolygonPath
 from scipy.spatial import ConvexHull, QhullError
 
 from renderloop.perception.boxes import shorter_side
+from renderloop.perception.scoring import MIN_SIDE as FINDABLE_SIDE
 from renderloop.perception.scoring import mask_boxes
 from renderloop.render.camera import Intrinsics
 from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Pepper, Scene
@@ -74,13 +79,26 @@ def silhouette_pixels(vertices: np.ndarray, pose: np.ndarray, intrinsics: Intrin
     return None if silhouette is None else int(silhouette[0].sum())
 
 
+def ignore_reason(box: Sequence[float], visible: float, min_side: float) -> str | None:
+    """Why a fruit is no training target, or None: "tiny" (a side under `min_side` px) or "occluded" (under
+    MIN_VISIBLE of its silhouette visible and its visible box under the findable size a side)."""
+    side = shorter_side(box)
+    return "tiny" if side < min_side else "occluded" if visible < MIN_VISIBLE and side < FINDABLE_SIDE else None
+
+
+def relabelled(record: dict, min_side: float = MIN_SIDE) -> dict:
+    """An image's label record with each fruit's `ignore` as `ignore_reason` gives it from the box and visible
+    fraction the record holds: a set labelled by an earlier rule, brought to this one without rendering it again."""
+    return {**record, "peppers": [{**p, "ignore": ignore_reason(p["bbox"], p["visible_fraction"], min_side)}
+                                  for p in record["peppers"]]}
+
+
 def _record(pepper_id: int | None, box: tuple[int, int, int, int], pepper: Pepper, pixels: int, visible: float,
             min_side: float) -> dict:
-    tiny = shorter_side(box) < min_side
+    visible = round(min(visible, 1.0), 4)  # as stored, so that `relabelled` decides as this does
     return {
         "pepper_id": pepper_id, "bbox": list(box), "label": label_of(pepper), "pixels": pixels,
-        "visible_fraction": round(min(visible, 1.0), 4),
-        "ignore": "tiny" if tiny else "occluded" if visible < MIN_VISIBLE else None,
+        "visible_fraction": visible, "ignore": ignore_reason(box, visible, min_side),
     }
 
 
