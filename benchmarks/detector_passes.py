@@ -1,7 +1,8 @@
 """Detector models and passes side by side on rendered runs the models never trained on: for each case, the
 recall of the findable ripe fruit at the lowest threshold with at most 5 % false detections (`renderloop
-threshold`'s rule), that recall by the fruit's shorter side in pixels, where small fruit show, and the recall of
-the findable green fruit at that threshold.
+threshold`'s rule), that recall by the fruit's shorter side in pixels, where small fruit show, and by the share of
+its silhouette in sight (the visible fraction of `dataset.labels`), where leaves hide fruit, and the recall of the
+findable green fruit at that threshold.
 
     .venv/bin/python benchmarks/detector_passes.py RUN... --case NAME=MODEL:WINDOWS:MIRROR[:MIN_BOX] ... [--name NAME]
 
@@ -15,20 +16,55 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
+
 from common import as_table, save_result
 
 from renderloop.config import Config
+from renderloop.dataset.labels import MIN_VISIBLE, pepper_boxes, pepper_vertices
 from renderloop.errors import UserError
 from renderloop.perception.boxes import shorter_side
 from renderloop.perception.detector import Detector
 from renderloop.perception.scoring import findable, match
 from renderloop.perception.threshold import choose, score_thresholds, search_run
 from renderloop.perception.tiling import all_windows, layout_names, parse_layouts
-from renderloop.render.frames import read_rgb_frame
+from renderloop.render.camera import read_camera_info
+from renderloop.render.frames import read_png, read_rgb_frame
+from renderloop.rundir import files, names
+from renderloop.scene.model import read_scene
 
 SIDES = ((20, 30), (30, 50), (50, 100), (100, None))  # px, the shorter side of a fruit's mask box at the frame's size
 BINS = [f"{low}-{high or 'up'}" for low, high in SIDES]
+IN_SIGHT = ((0.0, MIN_VISIBLE), (MIN_VISIBLE, 0.5), (0.5, None))  # share of a fruit's silhouette that the mask shows
+SIGHT_BINS = [f"in sight {low:g}-{high or 1:g}" for low, high in IN_SIGHT]
 MAX_FALSE = 0.05
+
+
+def shares_in_sight(run_dir: Path) -> list[dict[int, float]]:
+    """Each frame's pepper id -> the share of its silhouette in sight, as `dataset-from-runs` labels it."""
+    scene, config = read_scene(run_dir), files.read_config(run_dir)
+    _, poses = files.read_poses(run_dir)
+    intrinsics, meshes = read_camera_info(run_dir), pepper_vertices(scene)
+    peppers = {pepper.id: pepper for pepper in scene.peppers}
+    return [{record["pepper_id"]: record["visible_fraction"]
+             for record in pepper_boxes(read_png(run_dir / names.frame_file(names.MASKS, index), np.uint16), peppers, meshes,
+                                        pose, intrinsics, config.camera.clip[0])}
+            for index, pose in enumerate(poses)]
+
+
+def recall_in_sight(runs, shares: list[list[dict[int, float]]], threshold: float) -> dict[str, float]:
+    """Recall of the findable ripe fruit in each bin of IN_SIGHT at `threshold`."""
+    found, total = [0] * len(IN_SIGHT), [0] * len(IN_SIGHT)
+    for run, run_shares in zip(runs, shares):
+        ripe = {p.id: p.ripe for p in run.scene.peppers}
+        for (detections, truth), in_sight in zip(run.frames, run_shares):
+            hits = set(match([d for d in detections if d["score"] >= threshold], truth.peppers).values())
+            for pepper, box in truth.peppers.items():
+                if ripe[pepper] and findable(box):
+                    k = next(k for k, (low, high) in enumerate(IN_SIGHT) if high is None or in_sight[pepper] < high)
+                    found[k] += pepper in hits
+                    total[k] += 1
+    return {name: round(f / t, 3) if t else None for name, f, t in zip(SIGHT_BINS, found, total)}
 
 
 def recall_by_side(runs, threshold: float) -> dict[str, float]:
@@ -56,7 +92,8 @@ def passes_label(layouts: list[str], mirror: str, min_box: float) -> str:
                       *([f"boxes of {min_box:g} px and up"] if min_box else [])])
 
 
-def measure(run_dirs: list[Path], model: str, windows: str, mirror: str, min_box: float) -> dict:
+def measure(run_dirs: list[Path], shares: list[list[dict[int, float]]], model: str, windows: str, mirror: str,
+            min_box: float) -> dict:
     settings = Config().override({"detector": {"windows": layout_names(parse_layouts(windows)), "mirror": mirror == "mirror",
                                                "min_box_px": min_box}}).detector
     detector = Detector(None if model == "shipped" else Path(model), threads=1)
@@ -70,7 +107,7 @@ def measure(run_dirs: list[Path], model: str, windows: str, mirror: str, min_box
     if chosen is None:
         return {"passes": passes, "threshold": None, "recall": 0.0, "false_pct": None}
     return {"passes": passes, "threshold": chosen.threshold, "recall": round(chosen.recall, 3), "false_pct": round(100 * chosen.false_rate, 1),
-            **recall_by_side(runs, chosen.threshold)}
+            **recall_by_side(runs, chosen.threshold), **recall_in_sight(runs, shares, chosen.threshold)}
 
 
 def main() -> None:
@@ -97,15 +134,20 @@ def main() -> None:
         except UserError as error:  # no such model, not a detector, or windows that are not layouts
             parser.error(f"--case {case}: {error}")
     records = []
+    try:
+        shares = [shares_in_sight(run) for run in args.runs]
+    except UserError as error:  # a run that is not a finished run; nothing is saved
+        parser.error(str(error))
     for name, model, windows, mirror, min_box in cases:
         try:
-            record = {"case": name, **measure(args.runs, model, windows, mirror, min_box)}
+            record = {"case": name, **measure(args.runs, shares, model, windows, mirror, min_box)}
         except UserError as error:  # a run that is not a finished run; nothing is saved
             parser.error(str(error))
         print(record, flush=True)
         records.append(record)
     columns = {"case": "model", "passes": "passes", "recall": "ripe recall", "false_pct": "false, %", "threshold": "threshold",
-               **{name: f"recall, {name} px" for name in BINS}, "unripe": "green recall"}
+               **{name: f"recall, {name} px" for name in BINS}, **{name: f"recall, {name}" for name in SIGHT_BINS},
+               "unripe": "green recall"}
     save_result(args.name, {"runs": [str(r) for r in args.runs], "max_false_pct": 100 * MAX_FALSE,
                             "table": as_table(records, columns)})
 
