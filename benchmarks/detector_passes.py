@@ -52,38 +52,27 @@ def shares_in_sight(run_dir: Path) -> list[dict[int, float]]:
             for index, pose in enumerate(poses)]
 
 
-def recall_in_sight(runs, shares: list[list[dict[int, float]]], threshold: float) -> dict[str, float]:
-    """Recall of the findable ripe fruit in each bin of IN_SIGHT at `threshold`."""
-    found, total = [0] * len(IN_SIGHT), [0] * len(IN_SIGHT)
+def recall_by_bin(runs, shares: list[list[dict[int, float]]], threshold: float) -> dict[str, float]:
+    """Recall of the findable ripe fruit in each bin of SIDES and of IN_SIGHT, and of the findable green fruit
+    (`unripe`; None where the runs hold none), at `threshold`; a box of either class finds a fruit, as `renderloop
+    threshold` scores."""
+    names = [*BINS, *SIGHT_BINS, "unripe"]
+    found, total = dict.fromkeys(names, 0), dict.fromkeys(names, 0)
     for run, run_shares in zip(runs, shares):
         ripe = {p.id: p.ripe for p in run.scene.peppers}
         for (detections, truth), in_sight in zip(run.frames, run_shares):
             hits = set(match([d for d in detections if d["score"] >= threshold], truth.peppers).values())
             for pepper, box in truth.peppers.items():
-                if ripe[pepper] and findable(box):
-                    k = next(k for k, (low, high) in enumerate(IN_SIGHT) if high is None or in_sight[pepper] < high)
-                    found[k] += pepper in hits
-                    total[k] += 1
-    return {name: round(f / t, 3) if t else None for name, f, t in zip(SIGHT_BINS, found, total)}
-
-
-def recall_by_side(runs, threshold: float) -> dict[str, float]:
-    """Recall of the findable ripe fruit in each bin of SIDES, and of the findable green fruit (`unripe`; None where
-    the runs hold none), at `threshold`; a box of either class finds a fruit, as `renderloop threshold` scores."""
-    found, total = [0] * (len(SIDES) + 1), [0] * (len(SIDES) + 1)  # the last: green fruit
-    for run in runs:
-        ripe = {p.id: p.ripe for p in run.scene.peppers}
-        for detections, truth in run.frames:
-            hits = set(match([d for d in detections if d["score"] >= threshold], truth.peppers).values())
-            for pepper, box in truth.peppers.items():
                 if not findable(box):
                     continue
                 side = shorter_side(box)
-                for k, (low, high) in enumerate(SIDES) if ripe[pepper] else [(len(SIDES), (0, None))]:
-                    if low <= side and (high is None or side < high):
-                        found[k] += pepper in hits
-                        total[k] += 1
-    return {name: round(f / t, 3) if t else None for name, f, t in zip([*BINS, "unripe"], found, total)}
+                bins = [next(name for name, (_, high) in zip(BINS, SIDES) if high is None or side < high),
+                        next(name for name, (_, high) in zip(SIGHT_BINS, IN_SIGHT) if high is None or in_sight[pepper] < high)
+                        ] if ripe[pepper] else ["unripe"]
+                for name in bins:
+                    found[name] += pepper in hits
+                    total[name] += 1
+    return {name: round(found[name] / total[name], 3) if total[name] else None for name in names}
 
 
 def passes_label(layouts: list[str], mirror: str, min_box: float) -> str:
@@ -107,7 +96,7 @@ def measure(run_dirs: list[Path], shares: list[list[dict[int, float]]], model: s
     if chosen is None:
         return {"passes": passes, "threshold": None, "recall": 0.0, "false_pct": None}
     return {"passes": passes, "threshold": chosen.threshold, "recall": round(chosen.recall, 3), "false_pct": round(100 * chosen.false_rate, 1),
-            **recall_by_side(runs, chosen.threshold), **recall_in_sight(runs, shares, chosen.threshold)}
+            **recall_by_bin(runs, shares, chosen.threshold)}
 
 
 def main() -> None:

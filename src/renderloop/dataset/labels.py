@@ -26,8 +26,7 @@ from matplotlib.path import Path as PolygonPath
 from scipy.spatial import ConvexHull, QhullError
 
 from renderloop.perception.boxes import shorter_side
-from renderloop.perception.scoring import MIN_SIDE as FINDABLE_SIDE
-from renderloop.perception.scoring import mask_boxes
+from renderloop.perception.scoring import MIN_SIDE as FINDABLE_SIDE, mask_boxes
 from renderloop.render.camera import Intrinsics
 from renderloop.scene.model import NEIGHBOUR_FRUIT_ID, Pepper, Scene
 from renderloop.scene.plant_meshes import plant_meshes
@@ -86,10 +85,11 @@ def ignore_reason(box: Sequence[float], visible: float, min_side: float) -> str 
     return "tiny" if side < min_side else "occluded" if visible < MIN_VISIBLE and side < FINDABLE_SIDE else None
 
 
-def relabelled(record: dict, min_side: float = MIN_SIDE) -> dict:
-    """An image's label record with each fruit's `ignore` as `ignore_reason` gives it from the box and visible
-    fraction the record holds: a set labelled by an earlier rule, brought to this one without rendering it again."""
-    return {**record, "peppers": [{**p, "ignore": ignore_reason(p["bbox"], p["visible_fraction"], min_side)}
+def relabelled(record: dict) -> dict:
+    """A rendered image's label record (`renderloop dataset`, tiny under MIN_SIDE) with each fruit's `ignore` as
+    `ignore_reason` gives it from the box and visible fraction the record holds: a set labelled by an earlier rule,
+    brought to this one without rendering it again."""
+    return {**record, "peppers": [{**p, "ignore": ignore_reason(p["bbox"], p["visible_fraction"], MIN_SIDE)}
                                   for p in record["peppers"]]}
 
 
