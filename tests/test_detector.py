@@ -158,8 +158,11 @@ def test_training_checkpoints_resumes_and_exports(tiny_dataset: Path, tmp_path: 
     first_conv = "backbone.features.0.0.0.weight"
     assert torch.load(out.with_suffix(".ckpt"), weights_only=True)["model"][first_conv].is_contiguous()
     logged = []
+    monkeypatch.setattr(train_module, "PROGRESS_BATCHES", 1)  # a progress line each batch of the resumed epoch
     record = train_detector(tiny_dataset, out, settings, device="cpu", workers=0, log=logged.append)
     assert logged[0].startswith("resuming after epoch 1")
+    assert [line.split(", loss")[0] for line in logged[1:3]] == ["epoch 2: 1 of 2 batches", "epoch 2: 2 of 2 batches"]
+    assert json.loads(logged[3])["epoch"] == 2
     resumed = torch.load(out.with_suffix(".ckpt"), weights_only=True)["model"][first_conv]
     assert resumed.is_contiguous(memory_format=torch.channels_last) and not resumed.is_contiguous()  # trained in NHWC
     assert [e["epoch"] for e in record["history"]] == [1, 2]

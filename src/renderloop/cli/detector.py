@@ -152,6 +152,23 @@ def quantize(
     made = quantize_on_renders(named_model(model), dataset_dirs, out, images, seed, force)
     typer.echo(f"quantize: wrote {made}")
 
+
+@app.command(rich_help_panel=PANEL)
+def blend(
+    first: Annotated[Path, typer.Argument(help=f"The ONNX detector trained on from, or '{SHIPPED_NAME}'.", show_default=False)],
+    second: Annotated[Path, typer.Argument(help="The ONNX detector trained on from FIRST (`train --init FIRST`, or on "
+                                           "from such a model).", show_default=False)],
+    out: Annotated[Path, typer.Option(help="The blended ONNX model to write.", show_default=False)],
+    share: Annotated[float, typer.Option(min=0.0, max=1.0, help="SECOND's share of each weight; FIRST has the rest.")] = 0.5,
+    force: Annotated[bool, typer.Option("--force", help="Replace --out if it exists.")] = False,
+) -> None:
+    """Blend two detectors of one network weight by weight (WiSE-FT): a fine-tune's gains with what it forgot (docs/stages/perception.md)."""
+    try:
+        from renderloop.perception.training.blend import blend_detectors
+    except ImportError as error:
+        raise train_extra("blending", error) from None
+    typer.echo(f"blend: wrote {blend_detectors(named_model(first), named_model(second), share, out, force)}")
+
 @app.command(name="threshold", rich_help_panel=PANEL)
 def choose_threshold(
     run_dirs: Annotated[list[Path], typer.Argument(help="Rendered runs the detector never trained on.", show_default=False)],

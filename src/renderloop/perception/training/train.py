@@ -44,6 +44,9 @@ Log = Callable[[str], None]
 # NHWC: oneDNN's convolutions train either backbone about 1.5 times as fast on a CPU as in torch's default NCHW
 # (benchmarks/train_speed.py). The arithmetic is the same, so a checkpoint of either layout resumes in this one.
 MEMORY_FORMAT = torch.channels_last
+# A progress line every this many batches: about 80 s at batch 32 on a 2-core CPU (8 images a second), so a 10-minute
+# epoch shows it is alive; a GPU's epoch of a few thousand images prints a handful.
+PROGRESS_BATCHES = 20
 
 
 def _device(name: str) -> torch.device:
@@ -259,6 +262,9 @@ def train_detector(datasets: Path | list[Path], out: Path, settings: TrainSettin
             losses.append(loss.item())
             seen += len(targets)
             steps += 1
+            if len(losses) % PROGRESS_BATCHES == 0:
+                log(f"epoch {epoch + 1}: {len(losses)} of {len(loader)} batches, loss {np.mean(losses[-PROGRESS_BATCHES:]):.3f}, "
+                    f"{seen / (time.perf_counter() - began):.1f} images/s")
             if settings.max_steps is not None and steps >= settings.max_steps:
                 break
         seconds = time.perf_counter() - began
