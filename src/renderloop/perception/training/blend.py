@@ -21,7 +21,7 @@ import numpy as np
 from renderloop.errors import UserError
 from renderloop.io.atomic import atomic_path
 from renderloop.perception.detector import Detector
-from renderloop.perception.training.from_onnx import onnx_metadata
+from renderloop.perception.training.from_onnx import check_model_out, onnx_metadata, set_metadata
 from renderloop.perception.training.quantize import is_quantized
 
 __all__ = ["BLEND", "blend_detectors"]
@@ -53,10 +53,7 @@ def blend_detectors(first: Path, second: Path, share: float, out: Path, force: b
     first, second, out = Path(first), Path(second), Path(out)
     if not 0.0 <= share <= 1.0:
         raise UserError(f"--share {share}: must lie in [0, 1]")
-    if out.suffix != ".onnx":
-        raise UserError(f"--out {out}: the model file must end in .onnx")
-    if out.exists() and not force:
-        raise UserError(f"--out {out}: exists; give another --out, or --force to replace it")
+    check_model_out(out, force)
     for path in (first, second):
         Detector(path)  # a file that is not a renderloop detector is refused here, in one line
         if is_quantized(path):
@@ -73,9 +70,7 @@ def blend_detectors(first: Path, second: Path, share: float, out: Path, force: b
         if np.issubdtype(ours.dtype, np.floating):  # integer tensors (shapes, indices) are the network's, not weights
             mixed = (1.0 - share) * ours.astype(np.float64) + share * theirs[tensor.name].astype(np.float64)
             tensor.CopyFrom(numpy_helper.from_array(mixed.astype(ours.dtype), tensor.name))
-    del model.metadata_props[:]
-    for key, value in {**onnx_metadata(first), BLEND: f"{1.0 - share:g} x {first.name} + {share:g} x {second.name}"}.items():
-        model.metadata_props.add(key=key, value=value)
+    set_metadata(model, {**onnx_metadata(first), BLEND: f"{1.0 - share:g} x {first.name} + {share:g} x {second.name}"})
     with atomic_path(out) as tmp:
         onnx.save(model, str(tmp))
         Detector(tmp)  # the contract holds on the blend too (a grey frame's outputs are probabilities)

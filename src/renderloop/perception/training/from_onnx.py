@@ -20,7 +20,7 @@ from torch import nn
 
 from renderloop.errors import UserError
 
-__all__ = ["weights_from_onnx", "freeze_batch_norms", "onnx_metadata"]
+__all__ = ["weights_from_onnx", "freeze_batch_norms", "onnx_metadata", "check_model_out", "set_metadata"]
 
 
 def _module_name(node_name: str) -> str:
@@ -44,6 +44,22 @@ def onnx_metadata(path: Path) -> dict[str, str]:
     except Exception as error:  # onnx raises its own decode errors, of several types
         raise UserError(f"--init {path}: not an ONNX model ({type(error).__name__})") from None
     return {entry.key: entry.value for entry in model.metadata_props}
+
+
+def check_model_out(out: Path, force: bool) -> None:
+    """Refuse, in one line, an `--out` for a model made from another (quantized, blended) that is no .onnx file or
+    that exists without `force`."""
+    if out.suffix != ".onnx":
+        raise UserError(f"--out {out}: the model file must end in .onnx")
+    if out.exists() and not force:
+        raise UserError(f"--out {out}: exists; give another --out, or --force to replace it")
+
+
+def set_metadata(model, entries: dict[str, str]) -> None:
+    """Make `entries` the metadata properties of the loaded ONNX `model`, in place of those it has."""
+    del model.metadata_props[:]
+    for key, value in entries.items():
+        model.metadata_props.add(key=key, value=value)
 
 
 def weights_from_onnx(path: Path, model: nn.Module) -> dict[str, torch.Tensor]:

@@ -25,7 +25,7 @@ from renderloop.errors import UserError
 from renderloop.io.atomic import atomic_path
 from renderloop.io.images import open_image
 from renderloop.perception.detector import Detector, to_input
-from renderloop.perception.training.from_onnx import onnx_metadata
+from renderloop.perception.training.from_onnx import check_model_out, onnx_metadata, set_metadata
 
 __all__ = ["QUANTIZED", "calibration_images", "is_quantized", "quantize_detector", "quantize_on_renders"]
 
@@ -59,10 +59,7 @@ def quantize_detector(model: Path, frames: Sequence[np.ndarray], out: Path, cali
     from onnxruntime.quantization.shape_inference import quant_pre_process
 
     model, out = Path(model), Path(out)
-    if out.suffix != ".onnx":
-        raise UserError(f"--out {out}: the model file must end in .onnx")
-    if out.exists() and not force:
-        raise UserError(f"--out {out}: exists; give another --out, or --force to replace it")
+    check_model_out(out, force)
     size = Detector(model).input_size  # a file that is not a renderloop detector is refused here, in one line
     if is_quantized(model):
         raise UserError(f"{model}: already quantized")
@@ -84,9 +81,8 @@ def quantize_detector(model: Path, frames: Sequence[np.ndarray], out: Path, cali
         quantize_static(str(prepared), str(tmp), Inputs(), quant_format=QuantFormat.QOperator, per_channel=True,
                         reduce_range=True, activation_type=QuantType.QUInt8, weight_type=QuantType.QInt8)
         graph = onnx.load(str(tmp))
-        del graph.metadata_props[:]  # the float model's, without what the quantizer's own passes added
-        for key, value in {**onnx_metadata(model), QUANTIZED: f"int8, {calibration}"}.items():
-            graph.metadata_props.add(key=key, value=value)
+        # the float model's, without what the quantizer's own passes added
+        set_metadata(graph, {**onnx_metadata(model), QUANTIZED: f"int8, {calibration}"})
         onnx.save(graph, str(tmp))
         Detector(tmp)  # the contract holds on the quantized graph too (a grey frame's outputs are probabilities)
     return out
