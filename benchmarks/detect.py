@@ -1,5 +1,5 @@
 """Speed of perception on one core: ONNX detector ms per 640x480 frame of peppers (the whole frame alone, with 2x2
-windows, and the default: 2x2 and 3x2 windows and the mirrored frame), one pass of each backbone's network at each
+windows, and the default windows and the mirrored frame), one pass of each backbone's network at each
 export size in float32 and quantized to int8, organised point cloud ms per 640x480 frame (side by side with
 Open3D's `create_from_depth_image` when Open3D is installed); saved to benchmarks/results/NAME.json. Training speed: benchmarks/train_speed.py.
 

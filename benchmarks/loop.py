@@ -97,7 +97,7 @@ def main() -> None:
         default = rates("default", raster)
         rows.append(("flight alone", [closed_loop(Path(tmp) / "default", raster, args.seconds, camera=False)[0]
                                       for _ in range(args.repeats)]))
-        rows.append(("raster camera 5 Hz + detection, the defaults (4x multisampling; twelve detector passes)",
+        rows.append(("raster camera 5 Hz + detection, the defaults (4x multisampling; the detector's windows and mirror)",
                      default))
         rows.append(("the same, the detector's one pass over the whole frame",
                      rates("one_pass", _config("raster", 5.0, one_pass=True))))

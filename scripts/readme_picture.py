@@ -16,10 +16,11 @@ from pathlib import Path
 
 from PIL import Image
 
-from renderloop.render.camera import Intrinsics
+from renderloop.render.camera import Intrinsics, read_camera_info
 from renderloop.report.plants import best_views, drawn_view
 from renderloop.report.view3d import greenhouse_figure, greenhouse_html
 from renderloop.rundir import files
+from renderloop.scene.model import read_scene
 
 CHROMIUM = "/usr/bin/chromium"
 VIEW_WIDTH = 1.25  # the 3D view's width, in heights
@@ -28,19 +29,19 @@ ZOOM = 0.55  # the report's camera moved this much of the way towards the plants
 
 def frame_picture(run_dir: Path, plant: int | None, height: int) -> Image.Image:
     _, poses = files.read_poses(run_dir)
-    views = best_views(run_dir, files.read_scene(run_dir), files.read_detections(run_dir, len(poses)))
+    views = best_views(run_dir, read_scene(run_dir), files.read_detections(run_dir, len(poses)))
     view = views[plant] if plant is not None else max(views.values(), key=lambda v: v.rank)
-    intrinsics: Intrinsics = files.read_camera_info(run_dir)
+    intrinsics: Intrinsics = read_camera_info(run_dir)
     return drawn_view(run_dir, view, width=round(height * intrinsics.width / intrinsics.height))
 
 
 def view_picture(run_dir: Path, height: int) -> Image.Image:
     from playwright.sync_api import sync_playwright
 
-    scene = files.read_scene(run_dir)
+    scene = read_scene(run_dir)
     times, poses = files.read_poses(run_dir)
     figure = greenhouse_figure(scene, files.read_counts(run_dir), files.read_detections(run_dir, len(poses)),
-                               files.read_flight(run_dir), times, poses, files.read_camera_info(run_dir))
+                               files.read_flight(run_dir), times, poses, read_camera_info(run_dir))
     width = round(VIEW_WIDTH * height)
     camera = figure.layout.scene.camera
     centre = [getattr(camera.center, axis) for axis in "xyz"]

@@ -31,6 +31,7 @@ from renderloop.counting.cluster import (
     count_rows,
     min_samples_for,
     resample,
+    voted_labels,
 )
 from renderloop.counting.harvest import (
     nearest_neighbour,
@@ -144,6 +145,29 @@ def test_a_fruit_seen_once_is_not_counted_and_two_views_are():
     found = cluster_row(far_apart, params, rng)
     assert found.min_samples == 250 and len(found.points) == 500
     np.testing.assert_allclose(found.centers, [[0.0, 1.0, 1.0025]], atol=1e-9)  # the only fruit seen twice
+
+
+def test_a_detection_takes_the_class_most_detections_around_its_point_hold():
+    rng = np.random.default_rng(4)
+    green = np.array([0.0, 0.0, 1.0]) + rng.normal(0.0, 0.0065, (20, 3))  # one green fruit, called ripe in 3 of 20 views
+    red = np.array([0.0, 0.08, 1.0]) + rng.normal(0.0, 0.0065, (12, 3))  # a ripe fruit touching it, a fruit's width away
+    points, labels = np.vstack([green, red]), np.array([0] * 3 + [1] * 17 + [0] * 12)  # CLASSES: ripe 0, unripe 1
+    assert voted_labels(points, labels, 0.04).tolist() == [1] * 20 + [0] * 12
+    tie = np.array([[0.0, 0.0, 1.0], [0.0, 0.01, 1.0]])
+    assert voted_labels(tie, np.array([0, 1]), 0.04).tolist() == [0, 1]  # a tie keeps each its own
+    assert voted_labels(np.zeros((0, 3)), np.zeros(0, dtype=int), 0.04).tolist() == []
+
+
+def test_a_green_fruit_called_ripe_in_a_few_views_is_counted_once_as_green(demo, tmp_path: Path):
+    config, scene = demo
+    points = synthetic_points(scene)
+    green = next(p for p in scene.peppers if not p.ripe)
+    mislabelled = np.array(green.center) + np.random.default_rng(2).normal(0.0, 0.0065, (3, 3))
+    run = make_run(tmp_path / "run", config, scene, {"ripe": np.vstack([points["ripe"], mislabelled]),
+                                                     "unripe": points["unripe"]})
+    assert run_count(run, config)
+    counts = read_counts(run)
+    assert counts.total.estimate == counts.total.truth and counts.total.unripe_estimate == counts.total.unripe_truth
 
 
 def test_a_fruit_seen_twice_is_counted_whatever_the_row_size():

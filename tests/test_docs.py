@@ -36,7 +36,7 @@ def test_docs_build_strictly(tmp_path):
     configuration = (site / "configuration" / "index.html").read_text(encoding="utf-8")
     assert "controller.position_xy.p" in configuration and "2.083" in configuration  # generated from the models
     assert "Simulation" in (site / "api" / "simulation" / "index.html").read_text(encoding="utf-8")
-    assert "ssdlite320_mobilenet_v3_large" in (site / "model-card" / "index.html").read_text(encoding="utf-8")
+    assert "ssdlite320_efficientnet_lite0_s8" in (site / "model-card" / "index.html").read_text(encoding="utf-8")
     run = json.loads((ROOT / "benchmarks" / "results" / "run.json").read_text(encoding="utf-8"))
     benchmarks = (site / "benchmarks" / "index.html").read_text(encoding="utf-8")
     assert f"Measured {run['date']} on {run['machine']} at {run['commit']}" in benchmarks  # the results file's table

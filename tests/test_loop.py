@@ -177,7 +177,7 @@ def test_the_online_counter_counts_what_the_batch_count_counts(complete_run: Pat
     assert counted.total("unripe") == recorded.total.unripe_estimate
     # each fruit with the support of the batch count's cluster: the detections behind it (a cluster may hold fewer
     # than min_views of them where some of its points are only the resampling's copies of a detection)
-    points = class_points(sorted(detections.frames, key=lambda frame: frame.index))
+    points = class_points(sorted(detections.frames, key=lambda frame: frame.index), config.counting.eps)
     batch = [(label, int(plant), int(support)) for label in CLASSES
              for row in count_rows(read_scene(complete_run), points[label], label, config.counting, config.seed)
              for plant, support in zip(row.plants, row.clusters.support())]

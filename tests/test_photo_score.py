@@ -125,12 +125,12 @@ def test_the_verb_scores_the_photos_from_one_search_at_the_floor_and_writes_its_
     code, stdout, stderr = cli(monkeypatch, capsys, "score-photos", str(folder), "--coco", str(labels), "--out", str(out))
     assert code == 0, stderr
     assert [call[0] for call in fake_network] == [PASS_FLOOR] * 3  # each photo searched once, with the config's passes
-    assert all(call[1] == [(2, 2), (3, 2)] and call[2] for call in fake_network)
+    assert all(call[1] == [(2, 2)] and call[2] for call in fake_network)
     assert "3 photos, 3 labelled boxes" in stdout
-    assert "at threshold 0.68: recall 0.333 (1/3), precision 0.333 (1/3), F1 0.333" in stdout
+    assert "at threshold 0.88: recall 0.333 (1/3), precision 0.500 (1/2), F1 0.400" in stdout
     assert "best F1 0.500 at 0.10" in stdout and str(out) in stdout
     record = PhotoScore.model_validate_json((out / "score.json").read_text())
-    assert (record.images, record.boxes, record.threshold, record.windows, record.mirror) == (3, 3, 0.68, ["2x2", "3x2"], True)
+    assert (record.images, record.boxes, record.threshold, record.windows, record.mirror) == (3, 3, 0.88, ["2x2"], True)
     assert record.class_agnostic.ap50 == pytest.approx(30.2 / 101, abs=1e-5)
     assert record.by_class is None  # one category, "pepper": no ripeness to score
     curve = record.class_agnostic.curve

@@ -282,7 +282,7 @@ def test_redraw_zero_is_the_estimate_and_counts_json_keeps_the_count_of_count_ro
     config, run = counted_run
     counts = files.read_counts(run)
     frames = files.read_detections(run, 40).frames
-    [row] = count_rows(scene, class_points(frames)["ripe"], "ripe", config.counting, config.seed)  # as before intervals
+    [row] = count_rows(scene, class_points(frames, config.counting.eps)["ripe"], "ripe", config.counting, config.seed)  # as before intervals
     for plant in counts.plants:
         mine = row.clusters.centers[row.plants == plant.id]
         assert plant.estimate == len(mine)

@@ -103,7 +103,7 @@ MissionKind = Annotated[str | None, Choice(
     "--mission")]
 RunDir = Annotated[Path, typer.Argument(help="Run directory made by `renderloop scene`.", show_default=False)]
 Windows = Annotated[str | None, typer.Option(help="Also search the windows of these columns x rows layouts of each image, "
-                                             "e.g. 2x2,3x2; none: whole images only; default: the config's (2x2,3x2).")]
+                                             "e.g. 2x2,3x2; none: whole images only; default: the config's detector.windows.")]
 Mirror = Annotated[bool | None, typer.Option("--mirror/--no-mirror", help="Also search each image mirrored; default: the config's.",
                                              show_default=False)]
 MinBox = Annotated[float | None, typer.Option("--min-box", min=0.0, help="Shorter side in px a detection's box needs; "

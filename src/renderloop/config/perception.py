@@ -21,12 +21,12 @@ def layout(text: str) -> Layout:
 
 class DetectorConfig(Strict):
     model: Path | None = Field(None, description="ONNX model; null means the one shipped in the package.")
-    score_threshold: Fraction = Field(0.68, description="Score a detection needs. Fused scores run higher than one "
+    score_threshold: Fraction = Field(0.88, description="Score a detection needs. Fused scores run higher than one "
                                       "pass's; the default is the lowest at which at most 5 % of the shipped model's "
                                       "detections on held-out paper runs are false, with the default windows and "
                                       "mirror (`renderloop threshold`, docs/stages/perception.md).")
     windows: tuple[Annotated[str, Field(pattern=f"^{LAYOUT_PATTERN}$")], ...] = Field(
-        ("2x2", "3x2"), max_length=64,  # the 8 x 8 possible layouts
+        ("2x2",), max_length=64,  # the 8 x 8 possible layouts
         description="Also search the overlapping windows of these columns x rows layouts of each frame, "
         "where small fruit look larger (one network pass a window; perception/tiling.py); []: the whole frame only.")
     mirror: bool = Field(True, description="Also search the frame mirrored left to right, the passes fused: one more "

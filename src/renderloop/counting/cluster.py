@@ -22,6 +22,11 @@ centres lie at least `split_distance` apart (a pepper's width: one fruit's point
 spread that far, two fruit's centres are never closer) is split in two, each group seen
 at least min_views times, and each part again (`split_chained`). The measurements behind
 each choice are in docs/stages/counting.md.
+
+Each class is counted apart, so a fruit the detector calls ripe in a few of its views and
+green in the rest would be counted twice, once in each class. One fruit has one ripeness:
+before the classes are split, each detection takes the class most of the detections within
+eps of its point hold (`voted_labels`).
 """
 
 from __future__ import annotations
@@ -214,23 +219,36 @@ class RowCount:
     indices: np.ndarray  # (n_init,) where each of the row's clustered detections is in the class's points
 
 
-def class_detections(frames: Iterable[DetectionFrame]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """World points (N, 3) of each class in the order the frames come, and the frame index (N,) each was seen in;
+def voted_labels(points: np.ndarray, labels: np.ndarray, radius: float) -> np.ndarray:
+    """Each point's class (an index into CLASSES) by the points within `radius` of it, its own among them: the class
+    most of them hold, its own on a tie. The points of one fruit lie within a centimetre or two of its centre and
+    those of two fruit a fruit's width apart, so at OPTICS' eps a point's neighbours are its fruit's views."""
+    from sklearn.neighbors import KDTree
+
+    if len(points) == 0:
+        return labels
+    votes = np.stack([KDTree(points[labels == k]).query_radius(points, radius, count_only=True)
+                      if np.any(labels == k) else np.zeros(len(points), dtype=int) for k in range(len(CLASSES))], axis=1)
+    best = votes.max(axis=1)
+    return np.where(votes[np.arange(len(points)), labels] == best, labels, votes.argmax(axis=1))
+
+
+def class_detections(frames: Iterable[DetectionFrame], radius: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """World points (N, 3) of each class in the order the frames come, and the frame index (N,) each was seen in, each
+    detection's class voted by those within `radius` of its point (`voted_labels`); detections without depth have no
+    place to count."""
+    placed = [(detection.position, CLASSES.index(detection.label), frame.index)
+              for frame in frames for detection in frame.detections if detection.position is not None]
+    points = np.array([position for position, _, _ in placed], dtype=float).reshape(-1, 3)
+    seen_in = np.array([index for _, _, index in placed], dtype=int)
+    labels = voted_labels(points, np.array([label for _, label, _ in placed], dtype=int), radius)
+    return {label: (points[labels == k], seen_in[labels == k]) for k, label in enumerate(CLASSES)}
+
+
+def class_points(frames: Iterable[DetectionFrame], radius: float) -> dict[str, np.ndarray]:
+    """World points of each class, in frame order, each detection's class voted by those within `radius` of it;
     detections without depth have no place to count."""
-    points: dict[str, list] = {label: [] for label in CLASSES}
-    seen_in: dict[str, list[int]] = {label: [] for label in CLASSES}
-    for frame in frames:
-        for detection in frame.detections:
-            if detection.position is not None:
-                points[detection.label].append(detection.position)
-                seen_in[detection.label].append(frame.index)
-    return {label: (np.array(points[label], dtype=float).reshape(-1, 3), np.array(seen_in[label], dtype=int))
-            for label in CLASSES}
-
-
-def class_points(frames: Iterable[DetectionFrame]) -> dict[str, np.ndarray]:
-    """World points of each class, in frame order; detections without depth have no place to count."""
-    return {label: points for label, (points, _) in class_detections(frames).items()}
+    return {label: points for label, (points, _) in class_detections(frames, radius).items()}
 
 
 def params_from(counting: CountingConfig) -> ClusterParams:

@@ -74,7 +74,7 @@ class OnlineCounter:
     def rows(self) -> dict[str, list[RowCount]]:
         """Each class counted per row, on the points of the frames in order (as the batch count reads them)."""
         if self._rows is None:
-            points = class_points(self._ordered())
+            points = class_points(self._ordered(), self.counting.eps)
             self._rows = {label: count_rows(self.scene, points[label], label, self.counting, self.seed, memo=self._memo)
                           for label in CLASSES}
         return self._rows

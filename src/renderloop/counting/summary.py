@@ -190,7 +190,7 @@ def count_scan(scene: Scene, detections: Detections, poses: np.ndarray, counting
     (`scanned_detections`); a row the scene lacks is refused in one line."""
     if rows is not None and (scanned := scene.of_rows(rows)) is not scene:
         detections, scene = scanned_detections(scene, detections, rows, counting), scanned
-    points = class_points(detections.frames)
+    points = class_points(detections.frames, counting.eps)
     counted = {label: count_rows(scene, points[label], label, counting, seed) for label in CLASSES}
     cameras = {index: pose[:3, 3] for index, pose in enumerate(poses)}
     uncertain = uncertainty(scene, detections.frames, cameras, counting, seed, estimate=counted[LABEL])

@@ -203,7 +203,7 @@ def evidence(scene: Scene, frames: Iterable[DetectionFrame], camera_positions: M
     spare counting them again. The cost is the redraws: redraws - 1 counts of the ripe rows,
     of only the rows whose detections changed with a `memo` (`count_rows`).
     """
-    points, seen_in = class_detections(frames)[LABEL]
+    points, seen_in = class_detections(frames, counting.eps)[LABEL]
     fractions = _checked_unseen(scene, unseen)
     cameras = {int(index): np.asarray(position, dtype=float).reshape(3) for index, position in camera_positions.items()}
     draws = [list(estimate) if estimate is not None else count_rows(scene, points, LABEL, counting, seed, memo=memo)]
