@@ -7,7 +7,10 @@ time and peak memory (the maximum resident set of the largest process, as /usr/b
 reports it). Medians over repeats, with min and max. The paper run renders at
 --paper-rate-hz (the preset's 5 Hz is some 3 000 Cycles frames, hours on two cores).
 
-    .venv/bin/python benchmarks/run.py [--quick] [--json benchmarks.json]
+    .venv/bin/python benchmarks/run.py [--quick] [--name NAME]
+
+Writes benchmarks/results/run.json (or NAME.json): the table the docs show (docs/benchmarks.md) and the figures the
+README names; a --quick run writes nothing unless given --name.
 """
 
 from __future__ import annotations
@@ -23,14 +26,13 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from common import RESULTS_FOLDER, summary
+from common import RESULTS_FOLDER, save_result, summary
 
 from renderloop.config import load_config
 from renderloop.counting.cluster import count_rows
 from renderloop.scene.generate import generate_scene
 
 HERE = Path(__file__).resolve().parent
-Row = tuple[str, dict | float | None, str, float | None]  # figure, measured, reference, ratio
 
 
 def sub_benchmark(name: str, *args: str) -> dict:
@@ -102,60 +104,76 @@ def whole_run(preset: str, overrides: dict, repeats: int) -> tuple[dict, dict]:
     return summary(seconds), summary(megabytes)
 
 
-def rows_of(results: dict, paper_rate: float, quick: bool) -> list[Row]:
-    fly, render, detect = results["fly"], results["render"], results["detect"]
+def row(figure: str, measured: dict | float | str, reference: str = "", ratio: float | None = None) -> list:
+    """A row of the docs' table: the figure, its median (three significant digits), min-max, its reference in the
+    same run and the ratio to it."""
+    if isinstance(measured, dict):
+        median, spread = float(f"{measured['median']:.3g}"), f"{measured['min']:.3g}-{measured['max']:.3g}"
+    else:
+        median, spread = float(f"{measured:.3g}") if isinstance(measured, float) else measured, ""
+    return [figure, median, spread, reference, "" if ratio is None else f"{ratio:.3g}x"]
+
+
+def figures_of(results: dict, paper_rate: float, quick: bool, minutes: float, repeats: int) -> dict:
+    """The results file's figures: the table the docs show, and the values the README names."""
+    fly, render, detect, counting = results["fly"], results["render"], results["detect"], results["counting_ms_per_row"]
     high = next(k for k in render if k.startswith("cycles_") and k.endswith("spp_s_per_frame") and "default" not in k)
-    rows: list[Row] = [
-        ("fly: closed-loop real-time factor", fly["closed_loop_real_time_factor"], "1x real time (Gazebo/RotorS)",
-         fly["closed_loop_real_time_factor"]["median"]),
-        ("fly: physics steps per s (closed loop)", fly["closed_loop_physics_steps_per_s"], "", None),
-        ("render: Cycles s per 640x480 frame, default", render["cycles_default_s_per_frame"], f"{high.split('_')[1]}: s per frame",
-         render[high]["median"] / render["cycles_default_s_per_frame"]["median"]),
-        (f"render: Cycles s per frame, {high.split('_')[1]}", render[high], "", None),
-        ("render: share inside path tracing, default", render["cycles_default_path_tracing_share"], "goal 0.90", None),
-        ("render: raster ms per 640x480 frame", render["raster_ms_per_frame"], "Cycles default",
-         1000 * render["cycles_default_s_per_frame"]["median"] / render["raster_ms_per_frame"]["median"]),
-        ("the same without shadows or antialiasing", render["raster_ms_per_frame_no_shadows_or_antialiasing"], "default raster",
-         render["raster_ms_per_frame"]["median"] / render["raster_ms_per_frame_no_shadows_or_antialiasing"]["median"]),
-        ("render stage: frames per s, 2 workers", render["render_stage_fps_2_workers"], "1 worker", render["speedup_2_workers"]),
-        ("render stage: frames per s, Ray 2 CPUs", render["render_stage_fps_ray_2_cpus"], "1 worker", render["speedup_ray_2_cpus"]),
-        ("point cloud ms per 640x480 frame", detect["cloud_ms"], "Open3D create_from_depth_image",
-         detect["open3d_cloud_ms"] / detect["cloud_ms"] if "open3d_cloud_ms" in detect else None),
-        ("detector: ONNX Runtime over torch, 2 threads", detect["onnx_speed_vs_torch_2_threads"], "the torch model", None),
-        ("shipped detector ms per 640x480 frame, one core", detect["whole_frame_ms"], "", None),
-        ("the same with 2x2 windows", detect["windows_2x2_ms"], "whole frame only",
-         detect["whole_frame_ms"] / detect["windows_2x2_ms"]),
-        ("the same, the default passes", detect["default_ms"], "goal 50 ms", 50 / detect["default_ms"]),
-        ("counting ms per paper row", results["counting_ms_per_row"]["count"], "", None),
-        ("OPTICS ms per paper row, compiled graph", results["counting_ms_per_row"]["optics_compiled"],
-         "scikit-learn's OPTICS", results["counting_ms_per_row"]["optics_scikit_learn"]["median"]
-         / results["counting_ms_per_row"]["optics_compiled"]["median"]),
-        ("demo run: wall s (raster)" if quick else "demo run: wall s", results["demo_seconds"], "goal 300 s",
-         300 / results["demo_seconds"]["median"]),
-        ("demo run: peak MB", results["demo_peak_mb"], "", None),
-        (f"paper run, camera {paper_rate:g} Hz: wall s", results["paper_seconds"], "", None),
-        ("paper run: peak MB", results["paper_peak_mb"], "", None),
+    samples = high.split("_")[1]
+    demo_s, demo_mb = results["demo_seconds"], results["demo_peak_mb"]
+    rows = [
+        row("fly: closed-loop real-time factor, x real time", fly["closed_loop_real_time_factor"],
+            "1x real time (Gazebo/RotorS)", fly["closed_loop_real_time_factor"]["median"]),
+        row(f"fly: the whole `renderloop fly` process on the {fly['process_simulated_seconds']:.0f} s paper scan, x real time",
+            fly["process_real_time_factor"], "goal 100x", fly["process_real_time_factor"]["median"] / 100),
+        row("fly: physics steps per second, closed loop / physics alone",
+            f"{fly['closed_loop_physics_steps_per_s']['median']:,.0f} / {fly['physics_steps_per_s']['median']:,.0f}"),
+        row("render: Cycles s per 640x480 frame, default (1 spp, denoised)", render["cycles_default_s_per_frame"],
+            f"{samples}: s per frame", render[high]["median"] / render["cycles_default_s_per_frame"]["median"]),
+        row(f"render: Cycles s per 640x480 frame, {samples}", render[high]),
+        row("render: share of a Cycles frame inside Cycles' render (path tracing, denoising)",
+            render["cycles_default_path_tracing_share"], "goal 0.90"),
+        row("render: raster ms per 640x480 frame", render["raster_ms_per_frame"], "Cycles default",
+            1000 * render["cycles_default_s_per_frame"]["median"] / render["raster_ms_per_frame"]["median"]),
+        row("the same without shadows or multisampling (`renderer.raster`), ms",
+            render["raster_ms_per_frame_no_shadows_or_antialiasing"], "default raster",
+            render["raster_ms_per_frame"]["median"] / render["raster_ms_per_frame_no_shadows_or_antialiasing"]["median"]),
+        row("render stage, 320x240 demo frames: frames per second, 2 workers", render["render_stage_fps_2_workers"],
+            "1 worker", render["speedup_2_workers"]),
+        row("render stage: frames per second, local Ray cluster of 2 CPUs", render["render_stage_fps_ray_2_cpus"],
+            "1 worker", render["speedup_ray_2_cpus"]),
+        row("point cloud ms per 640x480 frame", detect["cloud_ms"], "Open3D create_from_depth_image",
+            detect["open3d_cloud_ms"] / detect["cloud_ms"] if "open3d_cloud_ms" in detect else None),
+        row("detector: ONNX Runtime's speed over torch's, 2 threads", detect["onnx_speed_vs_torch_2_threads"]),
+        row("the shipped detector, ms a 640x480 frame on one core: whole frame / 2x2 windows / the default passes",
+            f"{detect['whole_frame_ms']} / {detect['windows_2x2_ms']} / {detect['default_ms']}", "goal 50 ms (the default)"),
+        row("counting ms per paper row", counting["count"]),
+        row("OPTICS ms per paper row, compiled graph (labels checked equal)", counting["optics_compiled"],
+            "scikit-learn's OPTICS", counting["optics_scikit_learn"]["median"] / counting["optics_compiled"]["median"]),
+        row("demo run (`renderloop run`" + (", raster)" if quick else ")") + ", wall s", demo_s, "goal 300 s",
+            300 / demo_s["median"]),
+        row("demo run, peak MB", demo_mb),
+        row(f"paper run, one seed, camera {paper_rate:g} Hz, wall s / peak MB",
+            f"{results['paper_seconds']['median']:.0f} / {results['paper_peak_mb']['median']:.0f}"),
     ]
-    return rows
-
-
-def print_table(rows: list[Row]) -> None:
-    print(f"{'figure':<44}{'median':>10}{'min':>10}{'max':>10}  {'reference':<32}{'ratio':>7}")
-    for name, value, reference, ratio in rows:
-        if isinstance(value, dict):
-            numbers = f"{value['median']:>10.3g}{value['min']:>10.3g}{value['max']:>10.3g}"
-        else:
-            numbers = f"{value:>10.3g}{'':>20}"
-        print(f"{name:<44}{numbers}  {reference:<32}{'' if ratio is None else f'{ratio:.2f}x':>7}")
+    return {
+        "repeats": repeats, "minutes": round(minutes), "quick": quick,
+        "table": {"columns": ["figure", "median", "min-max", "reference, same run", "ratio"], "rows": rows},
+        "closed_loop_rtf": round(fly["closed_loop_real_time_factor"]["median"]),
+        "process_rtf": round(fly["process_real_time_factor"]["median"]),
+        "cycles_default_s": round(render["cycles_default_s_per_frame"]["median"], 2),
+        "cycles_high_s": round(render[high]["median"], 1), "cycles_high_samples": samples,
+        "demo_wall_s": round(demo_s["median"], 1), "demo_peak_mb": round(demo_mb["median"]),
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="few repeats, raster demo and paper runs: a minutes-long smoke run")
     parser.add_argument("--paper-rate-hz", type=float, default=0.2, help="camera rate of the paper run (0.2 Hz: 125 frames)")
-    parser.add_argument("--json", type=Path)
+    parser.add_argument("--name", help="Results file: benchmarks/results/NAME.json; default run, and none with --quick "
+                        "(a smoke run's figures are not the docs')")
     args = parser.parse_args()
-    repeats = 1 if args.quick else 3
+    began, repeats = time.perf_counter(), 1 if args.quick else 3
     results = {
         "fly": sub_benchmark("fly", "--repeats", str(repeats), "--seconds", "20" if args.quick else "60"),
         "render": sub_benchmark("render", "--repeats", str(repeats)),
@@ -166,12 +184,14 @@ def main() -> None:
     results["demo_seconds"], results["demo_peak_mb"] = whole_run("demo", raster, repeats)
     paper = {**raster, "camera": {"rate_hz": args.paper_rate_hz}}
     results["paper_seconds"], results["paper_peak_mb"] = whole_run("paper", paper, 1)
-    rows = rows_of(results, args.paper_rate_hz, args.quick)
+    figures = figures_of(results, args.paper_rate_hz, args.quick, (time.perf_counter() - began) / 60, repeats)
     print(f"\nrenderloop benchmarks, {time.strftime('%Y-%m-%d')}, {len(os.sched_getaffinity(0))} cores"
           f"{' (quick: raster runs, one repeat)' if args.quick else ''}")
-    print_table(rows)
-    if args.json:
-        args.json.write_text(json.dumps({"results": results, "table": rows}, indent=1) + "\n")
+    for line in figures["table"]["rows"]:
+        print("  ".join(str(cell) for cell in line if cell != ""))
+    name = args.name or (None if args.quick else "run")
+    if name:
+        print(save_result(name, figures))
 
 
 if __name__ == "__main__":

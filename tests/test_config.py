@@ -23,6 +23,14 @@ def test_demo_preset_is_one_table_all_bearing():
     assert config.plants.bearing is None
 
 
+def test_the_commercial_preset_detects_as_the_greenhouse_preset_its_crop_and_camera():
+    """The detector's threshold is chosen on the greenhouse preset's scans; the commercial compartment is the same
+    crop seen by the same camera (two passes a frame), so it must take the same setting."""
+    greenhouse, commercial = load_config("greenhouse"), load_config("commercial")
+    assert commercial.plants.style == greenhouse.plants.style
+    assert (commercial.camera.width, commercial.camera.height) == (greenhouse.camera.width, greenhouse.camera.height)
+    assert commercial.detector == greenhouse.detector != load_config("paper").detector
+
 def test_yaml_overrides_nested_fields_and_keeps_the_rest(tmp_path: Path):
     override = tmp_path / "override.yaml"
     override.write_text("plants:\n  peppers:\n    per_side: [2, 3]\ncamera:\n  rate_hz: 10\n")
