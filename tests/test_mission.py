@@ -3,7 +3,6 @@ decided is in mission.json, the same for a seed, and a mission that cannot look 
 
 from __future__ import annotations
 
-import json
 import shutil
 from pathlib import Path
 
@@ -71,11 +70,10 @@ def test_an_adaptive_runs_count_takes_the_missions_interval_and_lone_credit_and_
         adaptive_run: Path, tmp_path: Path):
     run_dir = tmp_path / "run"
     shutil.copytree(adaptive_run, run_dir)
-    detections = json.loads((run_dir / names.DETECTIONS).read_text(encoding="utf-8"))
-    for frame in detections["frames"]:  # the detections of every third frame alone: a sparse scan sees fruit once
-        if frame["index"] % 3:
-            frame["detections"] = []
-    (run_dir / names.DETECTIONS).write_text(json.dumps(detections), encoding="utf-8")
+    detections = files.read_detections(run_dir, len(files.read_poses(run_dir)[1]))
+    sparse = [frame if frame.index % 3 == 0 else frame.model_copy(update={"detections": []})  # a sparse scan sees
+              for frame in detections.frames]  # fruit once: the detections of every third frame alone
+    files.write_model(run_dir / names.DETECTIONS, detections.model_copy(update={"frames": sparse}))
     wide = IntervalConfig(hidden=3.0)  # about three hidden fruit a plant: no interval can be the estimate alone
     config = _config().override({"mission": {"adaptive": {"interval": wide, "lone_credit": 1.0}}})
     assert run_counting(config).interval == wide and run_counting(config).lone_credit == 1.0
