@@ -18,9 +18,6 @@ from renderloop.scene.visible import visible_scene
 from renderloop.scene.world import world_xml
 from tests.conftest import scene_for
 
-# one worker builds the module's commercial fixtures once (with xdist's default split each worker would build them)
-pytestmark = pytest.mark.xdist_group("commercial")
-
 # sha256 of the demo's (seed 0) and the paper's (seed 7) scan waypoints, kind, plant, side and q* to 6 decimals, as
 # planned before `planner.row` and `planner.sides` existed: their defaults plan the same waypoints
 PLANS = {("demo", 0): "89654c2ca24eb5ac699b77c89c044effe074a8b13990617c712ad0088b7ba3a5",

@@ -53,9 +53,6 @@ def _contents(directory: Path) -> dict[str, str]:
             found[name] = hashlib.sha1(path.read_bytes()).hexdigest()
     return found
 
-# one worker builds the module's fleet fixtures once (with xdist's default split each worker would build them)
-pytestmark = pytest.mark.xdist_group("fleet")
-
 
 @pytest.fixture(scope="module")
 def small():
