@@ -5,8 +5,8 @@ For 52, 208 and 1000 stops, on two layouts: `uniform`, stops drawn uniformly in 
 1.35 m, a plant every 0.38 m), long enough that the stops are two in three of their plants, drawn at random, with
 the workstation 0.6 m before the lines' start: reversals there often tie. Each instance (seeded, `--instances` of
 each layout and size) starts from the nearest-neighbour tour and is improved by both implementations in this
-process: `pair_by_pair` (below, the scan that tests one reversal at a time with numpy's norm of each leg, as
-`two_opt` did before its search was vectorised) once, the vectorised `renderloop.counting.harvest.two_opt`
+process: `renderloop.counting.harvest.two_opt_pair_by_pair` (the scan that tests one reversal at a time with
+numpy's norm of each leg, as `two_opt` did before its search was vectorised) once, the vectorised `renderloop.counting.harvest.two_opt`
 `--repeats` times. Reported per layout and size: the median over instances of each one's seconds (the vectorised
 one's median of its repeats) and of the greedy tour's, the speed-up, whether every tour is the same, and how much
 2-opt shortens the greedy tour.
@@ -28,34 +28,15 @@ import numpy as np
 from common import as_table, save_result
 
 from renderloop.counting.harvest import (
-    IMPROVEMENT,
     nearest_neighbour,
     tour_length,
     two_opt,
+    two_opt_pair_by_pair,
 )
 
 SIDE = 20.0  # m: the uniform layout's square
 LINES = (-1.35, -0.95, 0.95, 1.35)  # m: the commercial preset's plant lines
 SPACING = 0.38  # m: its plants along a line
-
-
-def pair_by_pair(start: np.ndarray, stops: np.ndarray, order: list[int]) -> list[int]:
-    """First-improvement 2-opt, one (i, j) at a time: the reference the vectorised search is measured against."""
-    order = list(order)
-    improved = True
-    while improved:
-        improved = False
-        path = np.vstack([start, stops[order], start])
-        for i in range(1, len(path) - 2):
-            for j in range(i + 1, len(path) - 1):
-                a, b, c, d = path[i - 1], path[i], path[j], path[j + 1]
-                before = np.linalg.norm(a - b) + np.linalg.norm(c - d)
-                after = np.linalg.norm(a - c) + np.linalg.norm(b - d)
-                if after < before - IMPROVEMENT:
-                    order[i - 1 : j] = order[i - 1 : j][::-1]
-                    path = np.vstack([start, stops[order], start])
-                    improved = True
-    return order
 
 
 def instance(layout: str, size: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -81,7 +62,7 @@ def measure(layout: str, size: int, instances: int, repeats: int) -> dict:
         start, stops = instance(layout, size, seed)
         greedy, seconds = timed(nearest_neighbour, start, stops)
         greedy_s.append(seconds)
-        old, seconds = timed(pair_by_pair, start, stops, greedy)
+        old, seconds = timed(two_opt_pair_by_pair, start, stops, greedy)
         old_s.append(seconds)
         runs = [timed(two_opt, start, stops, greedy) for _ in range(repeats)]
         new_s.append(statistics.median(seconds for _, seconds in runs))

@@ -7,7 +7,9 @@ half (`renderloop train --photos ... --init MODEL`), and scores it and the model
 into the package, and every other figure of the project stays synthetic-only.
 
     .venv/bin/python benchmarks/photo_finetune.py PHOTOS --coco LABELS.json --work /tmp/finetune [--init shipped]
-        [--photo-class ripe] [--epochs 8] [--json result.json]
+        [--photo-class ripe] [--epochs 8] [--name photo_finetune]
+
+Saves benchmarks/results/NAME.json, the model card's "Apart" table.
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+from common import save_result
 
 RENDERLOOP = [sys.executable, "-m", "renderloop"]
 
@@ -47,7 +51,7 @@ def main() -> None:
     parser.add_argument("--photo-class", default="ripe", help="class of boxes whose category names no ripeness")
     parser.add_argument("--epochs", type=int, default=8)
     parser.add_argument("--learning-rate", type=float, default=3e-4)
-    parser.add_argument("--json", type=Path, help="write the figures here")
+    parser.add_argument("--name", default="photo_finetune", help="Results file: benchmarks/results/NAME.json.")
     args = parser.parse_args()
 
     from renderloop.perception.detector import shipped_model
@@ -68,11 +72,10 @@ def main() -> None:
     for name, model in (("synthetic_only", start), ("photo_tuned", tuned)):
         agnostic = score(args.photos, test_coco, model, args.work / f"score_{name}")["class_agnostic"]
         figures[name] = {key: value for key, value in agnostic.items() if key != "curve"}
-    result = {"command": " ".join(sys.argv), "train_images": len(train_half["images"]), "test_images": len(test_half["images"]),
+    result = {"init": args.init, "train_images": len(train_half["images"]), "test_images": len(test_half["images"]),
               "test_boxes": len(test_half["annotations"]), "epochs": args.epochs, "train_minutes": round(minutes, 1), **figures}
     print(json.dumps(result, indent=1))
-    if args.json:
-        args.json.write_text(json.dumps(result, indent=1) + "\n")
+    save_result(args.name, result)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """The vectorised 2-opt of the harvest plan against the pair-by-pair scan it replaces.
 
-`pair_by_pair` is that scan written out plainly (one reversal tested at a time, with
-numpy's norm of each leg): the vectorised `two_opt` must apply the same moves in the same
+`two_opt_pair_by_pair` is that scan written out plainly (one reversal tested at a time,
+with numpy's norm of each leg): the vectorised `two_opt` must apply the same moves in the same
 order, so it returns the same tour, and the presets' harvest plans stay the same bytes.
 """
 
@@ -19,27 +19,9 @@ from renderloop.counting.harvest import (
     plan_harvest,
     tour_length,
     two_opt,
+    two_opt_pair_by_pair,
 )
 from renderloop.io.atomic import dumps_json
-
-
-def pair_by_pair(start: np.ndarray, stops: np.ndarray, order: list[int]) -> list[int]:
-    """First-improvement 2-opt, one (i, j) at a time: the reference the vectorised search must match."""
-    order = list(order)
-    improved = True
-    while improved:
-        improved = False
-        path = np.vstack([start, stops[order], start])
-        for i in range(1, len(path) - 2):
-            for j in range(i + 1, len(path) - 1):
-                a, b, c, d = path[i - 1], path[i], path[j], path[j + 1]
-                before = np.linalg.norm(a - b) + np.linalg.norm(c - d)
-                after = np.linalg.norm(a - c) + np.linalg.norm(b - d)
-                if after < before - IMPROVEMENT:
-                    order[i - 1 : j] = order[i - 1 : j][::-1]
-                    path = np.vstack([start, stops[order], start])
-                    improved = True
-    return order
 
 
 def instance(seed: int, size: int) -> tuple[np.ndarray, np.ndarray, list[int]]:
@@ -73,7 +55,7 @@ def test_two_opt_returns_the_pair_by_pair_scans_tour_on_many_random_instances():
     for seed in range(240):
         size = 5 + seed * 37 % 56  # 5 .. 60 stops
         start, stops, order = instance(seed, size)
-        assert two_opt(start, stops, order) == pair_by_pair(start, stops, order), f"seed {seed}, {size} stops"
+        assert two_opt(start, stops, order) == two_opt_pair_by_pair(start, stops, order), f"seed {seed}, {size} stops"
         sizes.append(size)
     assert min(sizes) == 5 and max(sizes) == 60
 
@@ -81,7 +63,7 @@ def test_two_opt_returns_the_pair_by_pair_scans_tour_on_many_random_instances():
 @pytest.mark.parametrize("size", [0, 1, 2, 3])
 def test_two_opt_handles_tours_too_short_to_reverse(size: int):
     start, stops, order = instance(1, size)
-    assert two_opt(start, stops, order) == pair_by_pair(start, stops, order)
+    assert two_opt(start, stops, order) == two_opt_pair_by_pair(start, stops, order)
     assert sorted(two_opt(start, stops, order)) == list(range(size))
 
 
@@ -103,7 +85,7 @@ def test_a_reversal_shortening_the_tour_by_less_than_the_tolerance_is_not_taken(
         stops = np.array([[1.0, lift], [2.0, 0.0], [3.0, 0.0]])
         gain = tour_length(start, stops, [0, 1, 2]) - tour_length(start, stops, [0, 2, 1])
         assert gain == pytest.approx(lift**2 / 4, rel=1e-3)
-        assert two_opt(start, stops, [0, 1, 2]) == pair_by_pair(start, stops, [0, 1, 2]) == expected
+        assert two_opt(start, stops, [0, 1, 2]) == two_opt_pair_by_pair(start, stops, [0, 1, 2]) == expected
 
 
 @pytest.mark.parametrize("preset", ["demo", "paper", "greenhouse"])
@@ -111,7 +93,7 @@ def test_the_presets_harvest_plans_are_the_same_bytes_as_with_the_pair_by_pair_s
     config, scene = scene_for(preset, load_config(preset).seed)
     ripe = {plant.id: sum(1 for pepper in scene.peppers_of(plant.id) if pepper.ripe) for plant in scene.plants}
     plans = {min_ripe: dumps_json(plan_harvest(scene, ripe, min_ripe)) for min_ripe in range(max(ripe.values()) + 2)}
-    monkeypatch.setattr(harvest, "two_opt", pair_by_pair)
+    monkeypatch.setattr(harvest, "two_opt", two_opt_pair_by_pair)
     for min_ripe, plan in plans.items():
         assert plan == dumps_json(plan_harvest(scene, ripe, min_ripe)), f"{preset}, min_ripe {min_ripe}"
     assert config.counting.harvest_min_ripe in plans

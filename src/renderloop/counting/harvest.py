@@ -92,6 +92,27 @@ def two_opt(start: np.ndarray, stops: np.ndarray, order: list[int]) -> list[int]
     return [order[slot] for slot in slots]
 
 
+def two_opt_pair_by_pair(start: np.ndarray, stops: np.ndarray, order: list[int]) -> list[int]:
+    """`two_opt`'s scan written out plainly, one (i, j) at a time with numpy's norm of each leg: the reference whose
+    moves, and so tour, `two_opt` must equal (tests/test_harvest_speedup.py) and that benchmarks/harvest.py times it
+    against. Quadratic Python per sweep: never used in a plan."""
+    order = list(order)
+    improved = True
+    while improved:
+        improved = False
+        path = np.vstack([start, stops[order], start])
+        for i in range(1, len(path) - 2):
+            for j in range(i + 1, len(path) - 1):
+                a, b, c, d = path[i - 1], path[i], path[j], path[j + 1]
+                before = np.linalg.norm(a - b) + np.linalg.norm(c - d)
+                after = np.linalg.norm(a - c) + np.linalg.norm(b - d)
+                if after < before - IMPROVEMENT:
+                    order[i - 1 : j] = order[i - 1 : j][::-1]
+                    path = np.vstack([start, stops[order], start])
+                    improved = True
+    return order
+
+
 def plan_harvest(scene: Scene, ripe_estimates: dict[int, int], min_ripe: int) -> dict:
     """`harvest.json`: the plants whose ripe estimate is at least `min_ripe`, in visiting order.
 
