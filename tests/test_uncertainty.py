@@ -22,6 +22,7 @@ from renderloop.config import Config, CountingConfig, IntervalConfig
 from renderloop.counting.cluster import class_points, count_rows, rng_for
 from renderloop.counting.online import OnlineCounter
 from renderloop.counting.stage import run_count
+from renderloop.counting.summary import count_scan
 from renderloop.counting.uncertainty import (
     PlantEvidence,
     central_interval,
@@ -34,7 +35,7 @@ from renderloop.counting.uncertainty import (
 )
 from renderloop.errors import UserError
 from renderloop.rundir import files
-from renderloop.rundir.models import Counts, Detection, DetectionFrame
+from renderloop.rundir.models import Counts, Detection, DetectionFrame, Detections
 from renderloop.scene.model import Plant, Scene
 
 FAST = CountingConfig(points=100, interval=IntervalConfig(redraws=2))
@@ -59,9 +60,9 @@ class Scan:
         self.frames: list[DetectionFrame] = []
         self.cameras: dict[int, np.ndarray] = {}
 
-    def view(self, camera: np.ndarray, points: list[np.ndarray]) -> None:
+    def view(self, camera: np.ndarray, points: list[np.ndarray], label: str = "ripe") -> None:
         index = len(self.frames)
-        detections = [Detection(bbox=(10.0, 10.0, 30.0, 30.0), score=0.9, label="ripe",
+        detections = [Detection(bbox=(10.0, 10.0, 30.0, 30.0), score=0.9, label=label,
                                 position=tuple(float(v) for v in np.asarray(p) + self.rng.normal(0.0, NOISE, 3)))
                       for p in points]
         self.frames.append(DetectionFrame(index=index, timestamp=index * 0.5, image=f"rgb/{index:06d}.png",
@@ -218,6 +219,32 @@ def test_the_estimate_credits_each_fruit_seen_once_with_the_lone_credit_rounded_
         assert found.total.estimate == sum(truth.values()) + 2 * added  # 0.4: 0.8 of a fruit in all, none in a plant
     assert uncertainty(scene, scan.frames, scan.cameras, FAST.model_copy(update={"lone_credit": 1.0}),
                        seed=0).total.estimate == sum(truth.values()) + 2
+
+
+def test_a_green_fruit_seen_once_adds_the_unripe_lone_credit_to_its_plants_green_estimate(scene):
+    plant = next(plant for plant in scene.plants if any(not p.ripe for p in scene.peppers_of(plant.id)))
+    once = next(np.array(p.center) for p in scene.peppers_of(plant.id) if not p.ripe)
+    scan = Scan().all_sides(scene)
+    for other in scene.plants:  # every green fruit seen from all round but one, seen once
+        green = [np.array(p.center) for p in scene.peppers_of(other.id) if not p.ripe]
+        green = [center for center in green if not np.array_equal(center, once)]
+        for camera in ring(other, np.linspace(0.0, 2 * math.pi, 6, endpoint=False)):
+            scan.view(camera, green, label="unripe")
+    scan.view(ring(plant, np.zeros(1))[0], [once], label="unripe")
+    poses = np.tile(np.eye(4), (len(scan.frames), 1, 1))
+    poses[:, :3, 3] = [scan.cameras[index] for index in range(len(scan.frames))]
+    detections = Detections(model="synthetic", score_threshold=0.5, frames=scan.frames)
+    for credit, added in ((0.0, 0), (0.4, 0), (0.5, 1), (1.0, 1)):
+        counting = FAST.model_copy(update={"unripe_lone_credit": credit})
+        counts = count_scan(scene, detections, poses, counting, seed=0, seen=None).counts
+        for found in counts.plants:
+            missed = int(found.id == plant.id)  # the fruit seen once is no cluster
+            assert len(found.unripe_clusters) == found.unripe_truth - missed
+            assert found.unripe_estimate == found.unripe_truth - missed + added * missed
+            assert found.estimate == found.truth  # the ripe count takes no green credit
+        lone = {found.id: found.unripe_seen_once for found in counts.plants if found.unripe_seen_once}
+        assert list(lone) == [plant.id] and np.linalg.norm(np.array(lone[plant.id][0]) - once) < 4 * NOISE
+        assert counts.total.unripe_estimate == counts.total.unripe_truth - 1 + added
 
 
 def test_an_unseen_fraction_widens_the_interval_upward(scene, all_round):

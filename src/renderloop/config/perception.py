@@ -86,6 +86,10 @@ class CountingConfig(Strict):
         "2 eps from every counted fruit) adds to its plant's estimate, rounded per plant. 0: the paper's count, clusters "
         "only. A sparse scan sees many real fruit once, a dense one sees a real fruit again: fit it per scan "
         "(benchmarks/intervals.py).")
+    unripe_lone_credit: Fraction = Field(
+        0.0, description="The same for green fruit: green fruit each lone green detection adds to its plant's green "
+        "estimate, rounded per plant. 0: clusters only. Fit it per scan and detector, like lone_credit "
+        "(benchmarks/green_credit.py).")
     cluster_method: Literal["dbscan", "xi"] = Field("dbscan", description="OPTICS cluster extraction (scikit-learn).")
     xi: Real(0.0, 1.0, low_open=True, high_open=True) = Field(0.05, description="Steepness for cluster_method 'xi'.")
     split_distance: Real(0.01, 1.0) | None = Field(

@@ -21,7 +21,15 @@ from renderloop.config import Config, CountingConfig
 from renderloop.counting.assign import NO_PLANT, rows_of_points
 from renderloop.counting.cluster import CLASSES, RowCount, class_points, count_rows
 from renderloop.counting.harvest import plan_harvest
-from renderloop.counting.uncertainty import LABEL, CountUncertainty, Uncertainty, stored_distribution, uncertainty
+from renderloop.counting.uncertainty import (
+    LABEL,
+    CountUncertainty,
+    Uncertainty,
+    credit_of,
+    lone_detections,
+    stored_distribution,
+    uncertainty,
+)
 from renderloop.counting.visibility import Seen
 from renderloop.rundir.models import Counts, Detections, Harvest
 from renderloop.scene.model import Scene
@@ -86,14 +94,17 @@ def total_of(plants: Sequence[Mapping[str, Any]], interval: Mapping[str, Any] | 
 
 
 def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detections, settings: dict,
-              seen: dict[int, Seen] | None = None, uncertain: Uncertainty | None = None) -> Counts:
+              seen: dict[int, Seen] | None = None, uncertain: Uncertainty | None = None,
+              unripe_lone: Mapping[int, Sequence[np.ndarray]] | None = None, unripe_lone_credit: float = 0.0) -> Counts:
     """The `counts.json` document from the per-row clusterings of both classes; with `uncertain`, the ripe counts'
     estimates (clusters and the credit of lone detections), intervals and each row's distribution
-    (`renderloop.counting.uncertainty`), which must have been made from the same ripe rows. It scores against every row
-    of `scene` and tallies every detection of `detections`: a scan of some rows passes the scene and the detections of
-    those rows (`count_scan`)."""
+    (`renderloop.counting.uncertainty`), which must have been made from the same ripe rows; with `unripe_lone` (per
+    plant, its lone green detections, `lone_detections` of the green rows) each plant's green estimate adds
+    `unripe_lone_credit` of a fruit for each, rounded half up. It scores against every row of `scene` and tallies every
+    detection of `detections`: a scan of some rows passes the scene and the detections of those rows (`count_scan`)."""
     truth, misses = truth_counts(scene), _scan_misses(scene, seen)
     intervals = _plant_uncertainty(scene, uncertain)
+    green_lone = {plant.id: list((unripe_lone or {}).get(plant.id, ())) for plant in scene.plants}
     centers = {plant.id: {label: [] for label in CLASSES} for plant in scene.plants}
     for label, rows in counts.items():
         for row in rows:
@@ -103,10 +114,12 @@ def summarise(scene: Scene, counts: dict[str, list[RowCount]], detections: Detec
         "id": plant.id, "row": plant.row,
         "estimate": len(centers[plant.id]["ripe"]) if uncertain is None else uncertain.plants[plant.id].estimate,
         "truth": truth[plant.id]["ripe"],
-        "unripe_estimate": len(centers[plant.id]["unripe"]), "unripe_truth": truth[plant.id]["unripe"],
+        "unripe_estimate": len(centers[plant.id]["unripe"]) + credit_of(len(green_lone[plant.id]), unripe_lone_credit),
+        "unripe_truth": truth[plant.id]["unripe"],
         "clusters": _rounded(np.array(centers[plant.id]["ripe"]).reshape(-1, 3)),
         "unripe_clusters": _rounded(np.array(centers[plant.id]["unripe"]).reshape(-1, 3)),
         "seen_once": [] if uncertain is None else _rounded(uncertain.plants[plant.id].lone_points),
+        "unripe_seen_once": _rounded(np.array(green_lone[plant.id]).reshape(-1, 3)),
         **misses[plant.id],
         **intervals[plant.id],
     } for plant in scene.plants]
@@ -194,7 +207,8 @@ def count_scan(scene: Scene, detections: Detections, poses: np.ndarray, counting
     counted = {label: count_rows(scene, points[label], label, counting, seed) for label in CLASSES}
     cameras = {index: pose[:3, 3] for index, pose in enumerate(poses)}
     uncertain = uncertainty(scene, detections.frames, cameras, counting, seed, estimate=counted[LABEL])
-    document = summarise(scene, counted, detections, settings_of(counting, seed), seen, uncertain)
+    document = summarise(scene, counted, detections, settings_of(counting, seed), seen, uncertain,
+                         lone_detections(scene, counted["unripe"], counting), counting.unripe_lone_credit)
     estimates = {plant.id: plant.estimate for plant in document.plants}
     harvest = Harvest.model_validate(plan_harvest(scene, estimates, counting.harvest_min_ripe), strict=False)
     return ScanCount(counted, document, harvest, scene)

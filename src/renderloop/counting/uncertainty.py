@@ -101,10 +101,14 @@ class PlantEvidence:
         return len(self.draws[0])
 
 
+def credit_of(lone: int, lone_credit: float) -> int:
+    """What a plant's `lone` detections add to its estimate: `lone_credit` of a fruit each, rounded half up."""
+    return math.floor(lone_credit * lone + 0.5)
+
+
 def credited(plant: PlantEvidence, lone_credit: float) -> int:
-    """The plant's estimate: its clusters plus `lone_credit` of a fruit for each of its lone detections (draw 0),
-    the credit rounded half up."""
-    return plant.estimate + math.floor(lone_credit * plant.lone[0] + 0.5)
+    """The plant's estimate: its clusters plus the credit of its lone detections (draw 0, `credit_of`)."""
+    return plant.estimate + credit_of(plant.lone[0], lone_credit)
 
 
 @dataclass(frozen=True)
@@ -161,8 +165,6 @@ def _draw_evidence(scene: Scene, rows: list[RowCount], seen_in: np.ndarray, came
                    counting: CountingConfig) -> tuple[dict[int, list[ClusterEvidence]], dict[int, list[np.ndarray]]]:
     """Per plant, the evidence of the clusters credited to it in one draw of every row, and its lone detections."""
     plants: dict[int, list[ClusterEvidence]] = {}
-    lone: dict[int, list[np.ndarray]] = {}
-    layout = {row.id: row for row in scene.rows}
     for row in rows:
         clusters = row.clusters
         for k, (plant, center, support) in enumerate(zip(row.plants, clusters.centers, clusters.support())):
@@ -172,12 +174,22 @@ def _draw_evidence(scene: Scene, rows: list[RowCount], seen_in: np.ndarray, came
             margin = np.count_nonzero(clusters.labels == k) / clusters.min_samples
             plants.setdefault(int(plant), []).append(ClusterEvidence(np.asarray(center, dtype=float), int(support),
                                                                      float(margin), spread))
+    return plants, lone_detections(scene, rows, counting)
+
+
+def lone_detections(scene: Scene, rows: Iterable[RowCount], counting: CountingConfig) -> dict[int, list[np.ndarray]]:
+    """Per plant, the points of the rows' detections in no cluster and farther than LONE_AWAY eps from every counted
+    fruit of their row and class: fruit seen once (either class: the rows say which)."""
+    lone: dict[int, list[np.ndarray]] = {}
+    layout = {row.id: row for row in scene.rows}
+    for row in rows:
+        clusters = row.clusters
         for point in clusters.points[clusters.original & (clusters.labels < 0)]:
             if len(clusters.centers) and np.linalg.norm(clusters.centers - point, axis=1).min() <= LONE_AWAY * counting.eps:
                 continue  # a stray view of a counted fruit, not a fruit seen once
             plant = plant_of_center(scene, layout[row.row], point, counting.use_layout, counting.volume_margin)
             lone.setdefault(plant, []).append(point)
-    return plants, lone
+    return lone
 
 
 def _checked_unseen(scene: Scene, unseen: Mapping[int, float | None] | None) -> dict[int, float | None]:

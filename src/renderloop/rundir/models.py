@@ -114,11 +114,12 @@ class PlantCount(FileModel):
     row: RowId
     estimate: Count  # ripe fruit counted: the clusters, and counting.lone_credit of a fruit for each seen once
     truth: Count  # ripe fruit in the scene
-    unripe_estimate: Count
+    unripe_estimate: Count  # green fruit counted: the clusters, and counting.unripe_lone_credit of a fruit for each seen once
     unripe_truth: Count
     clusters: list[Point]  # counted ripe fruit, world frame, m
     unripe_clusters: list[Point]
     seen_once: list[Point] = []  # ripe detections in no cluster, away from every counted fruit (fruit seen once), m
+    unripe_seen_once: list[Point] = []  # the same of the green detections, m
     unseen: Count | None = None  # ripe fruit of the plant no frame showed (from the masks; null without masks)
     too_small: Count | None = None  # ripe fruit only ever seen smaller than the detector's findable size
     interval: CountInterval | None = None  # where the true ripe count lies (null: counted without the intervals)
@@ -130,7 +131,7 @@ class RowCount(FileModel):
     id: RowId
     estimate: Count
     truth: Count
-    unripe_estimate: Count
+    unripe_estimate: Count  # green fruit counted: the clusters, and counting.unripe_lone_credit of a fruit for each seen once
     unripe_truth: Count
     detections: Count  # ripe points of the row after false-positive removal (the paper's n_init)
     unripe_detections: Count
@@ -145,7 +146,7 @@ class TotalCount(FileModel):
     estimate: Count
     truth: Count
     error_pct: Percent | None  # 100 (estimate - truth) / truth; null when there is no ripe fruit
-    unripe_estimate: Count
+    unripe_estimate: Count  # green fruit counted: the clusters, and counting.unripe_lone_credit of a fruit for each seen once
     unripe_truth: Count
     exact_plants: Unit | None  # share of plants counted exactly
     unseen: Count | None = None  # ripe fruit no frame showed: the scan's misses, not the detector's
