@@ -3,7 +3,7 @@ others.
 
 Takes run directories made by `renderloop run` or `renderloop eval` (an eval folder stands for its seed_* runs), each
 with its detections. Each run is counted as `renderloop count` counts it (`count_scan`, the run's own counting
-settings), and per plant its green clusters and its lone green detections (`lone_detections` of the green rows: in no
+settings), and per plant its green clusters and its lone green detections (`counts.json`'s `unripe_seen_once`: in no
 cluster, farther than two eps from every counted green fruit) are kept beside its true green count. --calib RUN...
 fits the credit (0 to 1 by 0.05) of the least mean absolute green-yield error of the runs (each run's plants summed;
 ties: the most plants exact, then the smaller credit), as benchmarks/intervals.py fits the ripe one; --held RUN...
@@ -22,7 +22,7 @@ import numpy as np
 from common import save_result
 
 from renderloop.counting.summary import count_scan, run_counting, scanned_rows
-from renderloop.counting.uncertainty import credit_of, lone_detections
+from renderloop.counting.uncertainty import credit_of
 from renderloop.counting.visibility import fruit_visibility
 from renderloop.rundir import files
 from renderloop.scene.model import read_scene
@@ -48,8 +48,7 @@ def green_plants(run: Path) -> list[GreenPlant]:
     counting = run_counting(config)
     counted = count_scan(read_scene(run), files.read_detections(run, len(times)), poses, counting, config.seed,
                          fruit_visibility(run, len(times)), scanned_rows(config))
-    lone = lone_detections(counted.scene, counted.rows["unripe"], counting)
-    return [GreenPlant(len(plant.unripe_clusters), len(lone.get(plant.id, ())), plant.unripe_truth)
+    return [GreenPlant(len(plant.unripe_clusters), len(plant.unripe_seen_once), plant.unripe_truth)
             for plant in counted.counts.plants]
 
 
@@ -75,8 +74,8 @@ def main() -> None:
     parser.add_argument("--credit", type=float, help="the credit to check the held runs at (default: the fitted one)")
     parser.add_argument("--name", default="counting_green_credit", help="Results file: benchmarks/results/NAME.json.")
     args = parser.parse_args()
-    calib = {run.name if len(args.calib) == 1 else str(run): green_plants(run) for run in run_dirs(args.calib)}
-    held = {run.name if len(args.held) == 1 else str(run): green_plants(run) for run in run_dirs(args.held)}
+    calib = {str(run): green_plants(run) for run in run_dirs(args.calib)}
+    held = {str(run): green_plants(run) for run in run_dirs(args.held)}
     figures: dict = {}
     credit = args.credit
     if calib:
@@ -84,7 +83,6 @@ def main() -> None:
         credit_fit, per_run, exact = min(options, key=lambda option: (mean_abs(option[1]), -option[2], option[0]))
         figures["calibration"] = {"runs": len(calib), "credit": credit_fit, "error_pct": round(mean_abs(per_run), 1),
                                   "error_pct_without": round(mean_abs(options[0][1]), 1),
-                                  "mean_error_pct_without": round(float(np.mean(list(options[0][1].values()))), 1),
                                   "lone_per_plant": round(float(np.mean([p.lone for ps in calib.values() for p in ps])), 2)}
         credit = credit_fit if credit is None else credit
     if held and credit is not None:

@@ -4,9 +4,9 @@ For 52, 208 and 1000 stops, on two layouts: `uniform`, stops drawn uniformly in 
 0.5 m beyond the middle of one side; `rows`, the commercial preset's four plant lines (x = -1.35, -0.95, 0.95,
 1.35 m, a plant every 0.38 m), long enough that the stops are two in three of their plants, drawn at random, with
 the workstation 0.6 m before the lines' start: reversals there often tie. Each instance (seeded, `--instances` of
-each layout and size) starts from the nearest-neighbour tour and is improved by both implementations in this
-process: `renderloop.counting.harvest.two_opt_pair_by_pair` (the scan that tests one reversal at a time with
-numpy's norm of each leg, as `two_opt` did before its search was vectorised) once, the vectorised `renderloop.counting.harvest.two_opt`
+each layout and size) starts from the nearest-neighbour tour and is improved by both implementations of
+`renderloop.counting.harvest` in this process: `two_opt_pair_by_pair` (the scan that tests one reversal at a time
+with numpy's norm of each leg, as `two_opt` did before its search was vectorised) once, the vectorised `two_opt`
 `--repeats` times. Reported per layout and size: the median over instances of each one's seconds (the vectorised
 one's median of its repeats) and of the greedy tour's, the speed-up, whether every tour is the same, and how much
 2-opt shortens the greedy tour.
