@@ -1,6 +1,7 @@
 """Speed of perception on one core: ONNX detector ms per 640x480 frame of peppers (the whole frame alone, with 2x2
 windows, and the default windows and the mirrored frame), one pass of each backbone's network at each
-export size in float32 and quantized to int8, organised point cloud ms per 640x480 frame (side by side with
+export size in float32 and quantized to int8, the shipped network's pass with its zero padding folded into the
+convolutions and as Pad nodes, organised point cloud ms per 640x480 frame (side by side with
 Open3D's `create_from_depth_image` when Open3D is installed); saved to benchmarks/results/NAME.json. Training speed: benchmarks/train_speed.py.
 
     .venv/bin/python benchmarks/detect.py [--repeats 30] [--name perception_speed]
@@ -117,6 +118,34 @@ def backbone_pass_ms(frame: np.ndarray, repeats: int) -> dict[tuple[str, int, st
     return figures
 
 
+def pad_fold_ms(frame: np.ndarray, repeats: int) -> dict[str, list[float]]:
+    """One pass of the shipped network (`efficientnet-lite0-s8` at 384 px, random weights) as exported, its zero
+    padding folded into the convolutions (`perception/training/graph.py`), and with the padding left as the Pad nodes
+    torch writes; on one core, the two timed in turn."""
+    import tempfile
+    from pathlib import Path
+    from unittest import mock
+
+    from renderloop.perception.training.ssd import build_model, export_onnx
+
+    model = build_model("efficientnet-lite0-s8", pretrained=False).eval()
+    detectors = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for kind in ("folded", "Pad nodes"):
+            path = Path(folder) / f"{len(detectors)}.onnx"
+            if kind == "folded":
+                export_onnx(model, path, input_size=384)
+            else:
+                with mock.patch("renderloop.perception.training.graph.fold_pads", lambda graph: 0):
+                    export_onnx(model, path, input_size=384)
+            detectors[kind] = Detector(path, threads=1)
+    times: dict[str, list[float]] = {kind: [] for kind in detectors}
+    for _ in range(repeats):
+        for kind, detector in detectors.items():
+            times[kind] += timed(lambda: detector.detect(frame, 0.5), 1)
+    return times
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=30)
@@ -135,6 +164,9 @@ def main() -> None:
              f"≤ {DEFAULT_GOAL_MS}")]
     rows += [(f"one pass, {backbone} at {size} px, {kind}", values, "")
              for (backbone, size, kind), values in backbone_pass_ms(frame, args.repeats).items()]
+    fold = pad_fold_ms(frame, args.repeats)
+    rows += [(f"one pass, efficientnet-lite0-s8 at 384 px, float32, zero padding {kind}", values, "")
+             for kind, values in fold.items()]
     cloud = timed(lambda: organised_cloud(depth, intrinsics), args.repeats)
     rows.append(("organised point cloud", cloud, "≤ 5"))
     reference = open3d_cloud_ms(depth, intrinsics, args.repeats)
@@ -148,6 +180,7 @@ def main() -> None:
                            for (name, values, goal), median in zip(rows, medians, strict=True)]},
         "whole_frame_ms": round(medians[0], 1), "windows_2x2_ms": round(medians[1], 1),
         "default_ms": round(medians[2], 1), "cloud_ms": round(summary(cloud)["median"], 2),
+        "pad_fold_speedup": round(summary(fold["Pad nodes"])["median"] / summary(fold["folded"])["median"], 2),
         "onnx_speed_vs_torch_2_threads": round(summary(torch_ms)["median"] / summary(onnx_ms)["median"], 2),
     }
     if reference is not None:

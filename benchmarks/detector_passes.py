@@ -5,9 +5,11 @@ its silhouette in sight (the visible fraction of `dataset.labels`), where leaves
 findable green fruit at that threshold.
 
     .venv/bin/python benchmarks/detector_passes.py RUN... --case NAME=MODEL:WINDOWS:MIRROR[:MIN_BOX] ... [--name NAME]
+        [--window-enlargement X]
 
 WINDOWS is `2x2,3x2` or `none`, MIRROR `mirror` or `none`, MIN_BOX the shorter side in px a box needs
-(`detector.min_box_px`, default 0); MODEL `shipped` or an ONNX file. Writes
+(`detector.min_box_px`, default 0); MODEL `shipped` or an ONNX file; X `detector.max_window_enlargement` for every
+case (default 1.5: a 320x240 frame takes no windows). Writes
 `benchmarks/results/NAME.json` (default detector_passes) with a row a case.
 """
 
@@ -21,6 +23,7 @@ import numpy as np
 from common import as_table, save_result
 
 from renderloop.config import Config
+from renderloop.config.perception import MAX_ENLARGEMENT
 from renderloop.dataset.labels import MIN_VISIBLE, pepper_boxes, pepper_vertices
 from renderloop.errors import UserError
 from renderloop.perception.boxes import shorter_side
@@ -82,15 +85,15 @@ def passes_label(layouts: list[str], mirror: str, min_box: float) -> str:
 
 
 def measure(run_dirs: list[Path], shares: list[list[dict[int, float]]], model: str, windows: str, mirror: str,
-            min_box: float) -> dict:
+            min_box: float, enlargement: float) -> dict:
     settings = Config().override({"detector": {"windows": layout_names(parse_layouts(windows)), "mirror": mirror == "mirror",
-                                               "min_box_px": min_box}}).detector
+                                               "min_box_px": min_box, "max_window_enlargement": enlargement}}).detector
     detector = Detector(None if model == "shipped" else Path(model), threads=1)
     runs = [search_run(run_dir, detector, settings) for run_dir in run_dirs]
     # The label names the layouts whose windows ran: `tiling` skips those the input would enlarge too much.
     height, width = read_rgb_frame(run_dirs[0], 0).shape[:2]
     searched = [name for name, layout in zip(settings.windows, settings.layouts)
-                if all_windows(width, height, [layout], detector.input_size)]
+                if all_windows(width, height, [layout], detector.input_size, enlargement)]
     passes = passes_label(searched, mirror, min_box)
     chosen = choose(score_thresholds(runs), MAX_FALSE)
     if chosen is None:
@@ -104,6 +107,7 @@ def main() -> None:
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--case", action="append", required=True, help="NAME=MODEL:WINDOWS:MIRROR[:MIN_BOX]")
     parser.add_argument("--name", default="detector_passes")
+    parser.add_argument("--window-enlargement", type=float, default=MAX_ENLARGEMENT)
     args = parser.parse_args()
     cases = []
     for case in args.case:  # every case read, and its model opened, before minutes of measuring
@@ -129,7 +133,7 @@ def main() -> None:
         parser.error(str(error))
     for name, model, windows, mirror, min_box in cases:
         try:
-            record = {"case": name, **measure(args.runs, shares, model, windows, mirror, min_box)}
+            record = {"case": name, **measure(args.runs, shares, model, windows, mirror, min_box, args.window_enlargement)}
         except UserError as error:  # a run that is not a finished run; nothing is saved
             parser.error(str(error))
         print(record, flush=True)
@@ -138,6 +142,7 @@ def main() -> None:
                **{name: f"recall, {name} px" for name in BINS}, **{name: f"recall, {name}" for name in SIGHT_BINS},
                "unripe": "green recall"}
     save_result(args.name, {"runs": [str(r) for r in args.runs], "max_false_pct": 100 * MAX_FALSE,
+                            "max_window_enlargement": args.window_enlargement,
                             "table": as_table(records, columns)})
 
 

@@ -35,7 +35,7 @@ def fake_network(monkeypatch) -> list[tuple[float, list, bool, float]]:
     """Detector.detect answers FOUND for the photo whose first pixel holds its id; the calls are recorded."""
     calls = []
 
-    def detect(self, rgb, score_threshold, layouts=(), mirror=False, min_side=0.0):
+    def detect(self, rgb, score_threshold, layouts=(), mirror=False, min_side=0.0, max_enlargement=1.5):
         calls.append((score_threshold, list(layouts), mirror, min_side))
         return [d for d in FOUND[int(rgb[0, 0, 0])]
                 if d.score >= score_threshold and min(d.bbox[2] - d.bbox[0], d.bbox[3] - d.bbox[1]) >= min_side]

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from renderloop.perception.detector import INPUT_SIZE, Detection, Detector
+from renderloop.config import Config
 from renderloop.errors import UserError
 from renderloop.perception.tiling import cut_by_window, parse_layouts, windows
 
@@ -38,9 +39,14 @@ def test_a_paper_frame_gets_3x2_windows_but_not_the_blurred_3x3_ones() -> None:
     assert windows(640, 480, 3, 3, 320) == []  # 176 px high: enlarged 1.82 times
 
 
-def test_no_windows_for_one_cell_or_when_they_would_only_be_blurred() -> None:
+def test_no_windows_for_one_cell_or_when_the_input_would_enlarge_them_more_than_allowed() -> None:
     assert windows(640, 480, 1, 1, 320) == []
     assert windows(320, 240, 2, 2, 320) == []  # the demo's frames: 176x132 windows, enlarged 2.4 times
+    assert windows(320, 240, 2, 2, 384) == []
+    # the greenhouse preset allows 3: its 320x240 frames get the four windows, enlarged 2.9 times at 384 px
+    assert windows(320, 240, 2, 2, 384, max_enlargement=3.0) == [(0, 0, 176, 132), (144, 0, 320, 132),
+                                                                   (0, 108, 176, 240), (144, 108, 320, 240)]
+    assert windows(320, 240, 2, 2, 400, max_enlargement=3.0) == []  # 400 / 132 = 3.03
 
 
 def test_window_layouts_parse_and_bad_ones_are_refused() -> None:
@@ -123,3 +129,11 @@ def test_the_mirrored_pass_comes_back_unmirrored_and_fuses(layouts: list, passes
     found = network.detect(frame, 0.5, layouts, mirror=True)
     assert network.passes == passes
     assert [(d.bbox, d.score) for d in found] == [((100.0, 60.0, 141.0, 100.0), pytest.approx(1 - 0.5 ** passes_holding_the_patch))]
+
+
+def test_the_settings_window_enlargement_decides_whether_a_small_frame_is_searched_in_windows() -> None:
+    frame = np.zeros((240, 320, 3), dtype=np.uint8)  # 2x2 windows of 176x132: enlarged 2.4 times at 320 px
+    for enlargement, passes in ((1.5, 2), (3.0, 6)):
+        network = BrightPatchNetwork()
+        network.search(frame, Config().override({"detector": {"max_window_enlargement": enlargement}}).detector)
+        assert network.passes == passes  # the frame, its mirror, and the windows only where allowed

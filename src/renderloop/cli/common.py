@@ -108,6 +108,9 @@ Mirror = Annotated[bool | None, typer.Option("--mirror/--no-mirror", help="Also 
                                              show_default=False)]
 MinBox = Annotated[float | None, typer.Option("--min-box", min=0.0, help="Shorter side in px a detection's box needs; "
                                               "default: the config's (0: every box).")]
+Enlargement = Annotated[float | None, typer.Option(
+    "--window-enlargement", min=1.0, max=16.0, help="Most times the network input may enlarge a window for its layout to "
+    "be searched; default: the config's detector.max_window_enlargement (1.5: a 320x240 image gets no windows).")]
 
 
 def _version(value: bool) -> None:
@@ -168,12 +171,13 @@ def named_model(model: Path | None) -> Path | None:
 
 
 def detector_options(model: Path | None, threshold: float | None, windows: str | None, mirror: bool | None,
-                      min_box: float | None) -> dict:
-    """The detector settings given of `--model`, `--threshold`, `--windows`, `--mirror` and `--min-box`, as config fields."""
+                      min_box: float | None, enlargement: float | None) -> dict:
+    """The detector settings given of `--model`, `--threshold`, `--windows`, `--mirror`, `--min-box` and
+    `--window-enlargement`, as config fields."""
     from renderloop.perception.tiling import layout_names, parse_layouts
 
     given = {"model": named_model(model), "score_threshold": threshold, "windows": None if windows is None else layout_names(parse_layouts(windows)),
-             "mirror": mirror, "min_box_px": min_box}
+             "mirror": mirror, "min_box_px": min_box, "max_window_enlargement": enlargement}
     return {name: value for name, value in given.items() if value is not None}
 
 

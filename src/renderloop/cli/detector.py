@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
-from renderloop.cli.common import (MODEL_HELP, SHIPPED_NAME, THRESHOLD_HELP, Address, Choice, Executor, Force, MinBox,
+from renderloop.cli.common import (MODEL_HELP, SHIPPED_NAME, THRESHOLD_HELP, Address, Choice, Enlargement, Executor, Force, MinBox,
                                    Mirror, Windows, Workers, app, detector_options, named_model, photo_detector,
                                    progress_bar, split_names, train_extra)
 from renderloop.config.dataset import DatasetSpec
@@ -176,13 +176,14 @@ def choose_threshold(
     windows: Windows = None,
     mirror: Mirror = None,
     min_box: MinBox = None,
+    enlargement: Enlargement = None,
     max_false: Annotated[float, typer.Option(min=0.0, max=1.0, help="Share of false detections allowed.")] = 0.05,
 ) -> None:
     """Choose the detector's score threshold on rendered runs: the lowest with at most --max-false of its detections false."""
     from renderloop.perception.detector import Detector
     from renderloop.perception.threshold import choose, format_scores, score_thresholds, search_run, threshold_text
 
-    settings = photo_detector(detector_options(model, None, windows, mirror, min_box))
+    settings = photo_detector(detector_options(model, None, windows, mirror, min_box, enlargement))
     detector = Detector(settings.model)
     with progress_bar("threshold") as progress:
         runs = [search_run(run_dir, detector, settings, progress) for run_dir in run_dirs]
@@ -207,13 +208,14 @@ def score_photo_folder(
     windows: Windows = None,
     mirror: Mirror = None,
     min_box: MinBox = None,
+    enlargement: Enlargement = None,
     force: Annotated[bool, typer.Option("--force", help="Replace a score that exists in --out.")] = False,
 ) -> None:
     """Score the detector on your labelled photos: recall, precision, F1, AP@0.5 (pycocotools) and the curve over thresholds."""
     from renderloop.perception.photo_score import OUTPUTS as PHOTO_SCORE_FILES
     from renderloop.perception.photo_score import score_photos, summary
 
-    settings = photo_detector(detector_options(model, threshold, windows, mirror, min_box))
+    settings = photo_detector(detector_options(model, threshold, windows, mirror, min_box, enlargement))
     with progress_bar("score-photos") as progress:
         record = score_photos(folder, coco, out, settings, force, progress)
     for line in summary(record):

@@ -11,7 +11,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from renderloop.cli.common import (MISSIONS, MODEL_HELP, THRESHOLD_HELP, Address, Choice, ConfigFile, Executor, Force,
+from renderloop.cli.common import (MISSIONS, MODEL_HELP, THRESHOLD_HELP, Address, Choice, ConfigFile, Enlargement, Executor, Force,
                                    MinBox, Mirror, MissionKind, Out, Preset, RunDir, Seed, Windows, Workers, app,
                                    detector_options, photo_detector, progress_bar, split_names)
 from renderloop.config import RendererConfig, choices, config_schema, load_config
@@ -79,6 +79,7 @@ def detect(
     windows: Windows = None,
     mirror: Mirror = None,
     min_box: MinBox = None,
+    enlargement: Enlargement = None,
     force: Force = False,
 ) -> None:
     """Detect peppers: detections.json (boxes, scores, ripe/unripe, 3D world points) of a run, or of a photo folder."""
@@ -88,7 +89,7 @@ def detect(
 
     if (run_dir is None) == (images is None):
         raise UserError("give either a run directory or --images FOLDER --out FILE.json")
-    given = detector_options(model, threshold, windows, mirror, min_box)
+    given = detector_options(model, threshold, windows, mirror, min_box, enlargement)
     if images is not None:
         if out is None:
             raise UserError("--images needs --out FILE.json")

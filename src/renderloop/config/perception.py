@@ -12,6 +12,7 @@ from renderloop.config.fields import Count, Fraction, Real, Strict
 
 Layout = tuple[int, int]  # a window layout (perception/tiling.py): columns, rows
 LAYOUT_PATTERN = r"[1-8]x[1-8]"
+MAX_ENLARGEMENT = 1.5  # detector.max_window_enlargement's default
 
 
 def layout(text: str) -> Layout:
@@ -29,6 +30,11 @@ class DetectorConfig(Strict):
         ("2x2",), max_length=64,  # the 8 x 8 possible layouts
         description="Also search the overlapping windows of these columns x rows layouts of each frame, "
         "where small fruit look larger (one network pass a window; perception/tiling.py); []: the whole frame only.")
+    max_window_enlargement: Real(1.0, 16.0) = Field(
+        MAX_ENLARGEMENT, description="Most times the network's input may enlarge a window, on either side, for its "
+        "layout to be searched. At 1.5 a 640x480 frame takes the 2x2 windows and a 320x240 frame none; a larger "
+        "enlargement shows no pixel the frame does not, but it is one more look, which the greenhouse preset's "
+        "320x240 frames gain from at 3 (perception/tiling.py, docs/stages/perception.md).")
     mirror: bool = Field(True, description="Also search the frame mirrored left to right, the passes fused: one more "
                          "network pass, for recall at the same rate of false detections (docs/stages/perception.md).")
     min_box_px: Real(0.0, 10_000.0) = Field(

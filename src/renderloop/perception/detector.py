@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from renderloop.config.perception import DetectorConfig
+from renderloop.config.perception import MAX_ENLARGEMENT, DetectorConfig
 from renderloop.config.training import INPUT_SIZE, INPUT_SIZES
 from renderloop.errors import UserError
 from renderloop.perception.boxes import nms, shorter_side
@@ -158,19 +158,20 @@ class Detector:
     def search(self, rgb: np.ndarray, settings: DetectorConfig, score_threshold: float | None = None) -> list[Detection]:
         """`detect` with the windows, mirror and smallest box of `settings`, at its threshold unless one is given."""
         threshold = settings.score_threshold if score_threshold is None else score_threshold
-        return self.detect(rgb, threshold, settings.layouts, settings.mirror, settings.min_box_px)
+        return self.detect(rgb, threshold, settings.layouts, settings.mirror, settings.min_box_px,
+                           settings.max_window_enlargement)
 
     def detect(self, rgb: np.ndarray, score_threshold: float, layouts: Sequence[Layout] = (), mirror: bool = False,
-               min_side: float = 0.0) -> list[Detection]:
+               min_side: float = 0.0, max_enlargement: float = MAX_ENLARGEMENT) -> list[Detection]:
         """Detections in the whole frame, with `mirror` in the frame mirrored left to right too, and in the
-        overlapping windows of each (columns, rows) layout; the passes merged; boxes whose shorter side is under
-        `min_side` px dropped."""
+        overlapping windows of each (columns, rows) layout the input enlarges at most `max_enlargement` times; the
+        passes merged; boxes whose shorter side is under `min_side` px dropped."""
         if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
             raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
         height, width = rgb.shape[:2]
         whole = (0, 0, width, height)
         passes = [(whole, False), *([(whole, True)] if mirror else []),
-                  *((window, False) for window in all_windows(width, height, layouts, self.input_size))]
+                  *((window, False) for window in all_windows(width, height, layouts, self.input_size, max_enlargement))]
         found = self._detect_once(rgb, score_threshold) if len(passes) == 1 else self._fused(rgb, passes, score_threshold)
         return [detection for detection in found if shorter_side(detection.bbox) >= min_side][:MAX_DETECTIONS]
 

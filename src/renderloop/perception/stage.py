@@ -78,7 +78,8 @@ def _detect(run_dir: Path, config: Config, job: Job) -> None:
     intrinsics = read_camera_info(run_dir)
     depth_dir = sensor_depth_dir(run_dir)
     cache = run_dir / names.DETECT_CACHE
-    key = f"{detector.path}@{settings.score_threshold}@{','.join(settings.windows)}@{settings.mirror}@{depth_dir}@{sensor_rgb_dir(run_dir)}"
+    key = (f"{detector.path}@{settings.score_threshold}@{','.join(settings.windows)}@{settings.mirror}"
+           f"@{settings.max_window_enlargement}@{settings.min_box_px}@{depth_dir}@{sensor_rgb_dir(run_dir)}")
     frames = [] if job.force else _read_cache(cache, key)
     ownership.record(cache)  # appended to as frames finish, not renamed into place: recorded here
     with open(cache, "w", encoding="utf-8") as out:  # rewritten from what was valid, then appended to
@@ -102,7 +103,7 @@ def write_detections(run_dir: Path, detector: Detector, settings: DetectorConfig
     """detections.json, its scores against the masks and the sheet of frames with both."""
     files.write_model(run_dir / names.DETECTIONS, Detections(
         model=str(detector.path), score_threshold=settings.score_threshold, windows=list(settings.windows),
-        mirror=settings.mirror, depth=depth_dir, frames=frames))
+        mirror=settings.mirror, max_window_enlargement=settings.max_window_enlargement, depth=depth_dir, frames=frames))
     masks = (read_png(run_dir / names.frame_file(names.MASKS, frame.index), np.uint16) for frame in frames)
     files.write_model(run_dir / names.DETECTION_SCORES, score_frames(read_scene(run_dir), frames, masks))
     draw_detection_sheet(run_dir, frames, run_dir / names.DETECTION_SHEET)

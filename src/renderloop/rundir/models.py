@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, RootModel, model_validator
 
 from renderloop.config.fields import MAX_PLANTS, MAX_TABLES, WORLD_BOUND
+from renderloop.config.perception import MAX_ENLARGEMENT
 from renderloop.io.images import MAX_PIXELS
 
 # About 16 weeks: longer than any scan the config allows (the planner's slowest limits over the largest floor take
@@ -76,6 +77,8 @@ class Detections(FileModel):
     score_threshold: Unit
     windows: list[str] = []  # window layouts (columns x rows) searched besides the whole frame
     mirror: bool = False  # the mirrored frame searched too
+    # the most a window may be enlarged for its layout to be searched (detector.max_window_enlargement)
+    max_window_enlargement: Annotated[float, Field(ge=1, le=16, allow_inf_nan=False)] = MAX_ENLARGEMENT
     depth: str | None = None  # which depth stream gave the positions
     frames: list[DetectionFrame]
 

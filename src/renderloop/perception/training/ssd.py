@@ -121,11 +121,12 @@ class DecodedSSD(nn.Module):
 
 
 def export_onnx(model: nn.Module, path: Path, metadata: dict[str, str] | None = None, input_size: int = INPUT_SIZE) -> None:
-    """Write the ONNX graph (classic TorchScript exporter, opset 17) for an `input_size` square input, with the backbone
-    and the classes in its metadata."""
+    """Write the ONNX graph (classic TorchScript exporter, opset 17, zero padding folded into the convolutions) for an
+    `input_size` square input, with the backbone and the classes in its metadata."""
     import onnx
 
     from renderloop.io.atomic import atomic_path
+    from renderloop.perception.training.graph import fold_pads
 
     model = model.eval()
     wrapper = DecodedSSD(model, input_size).eval()
@@ -133,6 +134,7 @@ def export_onnx(model: nn.Module, path: Path, metadata: dict[str, str] | None = 
         torch.onnx.export(wrapper, (torch.zeros(1, 3, input_size, input_size),), str(tmp), input_names=["images"],
                           output_names=["boxes", "scores"], opset_version=OPSET, dynamo=False)
         graph = onnx.load(str(tmp))
+        fold_pads(graph)  # the same function, a fifth faster on ONNX Runtime's CPU kernels (`graph`)
         entries = {"renderloop_detector": detector_name(model.renderloop_backbone), "classes": ",".join(CLASSES), **(metadata or {})}
         for key, value in entries.items():
             graph.metadata_props.add(key=key, value=str(value))
