@@ -8,6 +8,7 @@ file that `renderloop.rundir.names` spells but docs/run-directory.md never descr
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import re
@@ -225,19 +226,27 @@ def _renderloop(where: str, text: str, complete: bool):
 PLACEHOLDER = re.compile(r"[A-Z][A-Z0-9_]*")  # DIR, N, S, SHARE: a value the reader chooses
 
 
+@functools.cache
+def cli_command():
+    """The CLI as one click group, built once: building it takes longer than parsing a command with it."""
+    import typer.main
+
+    from renderloop.cli import app
+
+    return typer.main.get_command(app)
+
+
 def parse_failure(argv: list[str], complete: bool) -> str | None:
     """Why the real CLI refuses `argv`, or None; it resolves the verb and parses its options without running it.
 
     An option whose value is a placeholder (`--seed S`) must exist, and its value is the reader's.
     """
-    import typer.main
     from typer._click.exceptions import BadOptionUsage, MissingParameter  # typer carries its own click
     from typer.exceptions import Exit, TyperException
 
-    from renderloop.cli import app
     from renderloop.errors import UserError
 
-    group = typer.main.get_command(app)
+    group = cli_command()
     try:
         with group.make_context("renderloop", list(argv), resilient_parsing=False) as context:
             # click keeps the verb and what follows it for Group.invoke, which would run it

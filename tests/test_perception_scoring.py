@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from renderloop.perception.scoring import FrameTruth, RunScore, share_inside
+from renderloop.perception.boxes import box_iou
+from renderloop.perception.scoring import FrameTruth, RunScore, match, shares_inside
 from renderloop.scene.model import NEIGHBOUR_FRUIT_ID
 
 RIPE_BIG, RIPE_SMALL, UNRIPE_BIG = 1, 2, 3
@@ -57,10 +58,32 @@ def test_the_other_class_still_finds_the_fruit_and_is_scored_as_a_wrong_label() 
     assert summary["ripe_found"] == 1 and summary["false_detections"] == 0 and summary["label_accuracy"] == 0.0
 
 
-def test_share_inside_is_the_largest_covered_share_of_the_box() -> None:
-    assert share_inside([0, 0, 10, 10], []) == 0.0
-    assert share_inside([0, 0, 10, 10], [(5, 0, 20, 10), (0, 0, 10, 2)]) == pytest.approx(0.5)
-    assert share_inside([0, 0, 10, 10], [(-5, -5, 15, 15)]) == pytest.approx(1.0)
+def test_matching_takes_detections_by_score_each_to_its_most_overlapping_free_pepper() -> None:
+    def greedy(detections, truth):  # the rule written plainly: one detection and one pepper at a time
+        matched = {}
+        for d in sorted(range(len(detections)), key=lambda d: -detections[d]["score"]):
+            free = [(box_iou(np.array([detections[d]["bbox"]], float), np.array([box], float))[0, 0], -k, pepper)
+                    for k, (pepper, box) in enumerate(truth.items()) if pepper not in matched.values()]
+            best = max(free, default=None)
+            if best is not None and best[0] >= 0.5:
+                matched[d] = best[2]
+        return matched
+
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        corners = rng.integers(0, 40, (12, 2))
+        truth = {10 + k: (int(x), int(y), int(x) + 12, int(y) + 12) for k, (x, y) in enumerate(corners[:4])}
+        detections = [{"bbox": [int(x), int(y), int(x) + int(rng.integers(9, 15)), int(y) + 12],
+                       "score": float(rng.choice([0.5, 0.7, 0.9]))} for x, y in corners[4:]]
+        assert match(detections, truth) == greedy(detections, truth)
+
+
+def test_shares_inside_are_each_boxs_largest_covered_share() -> None:
+    boxes = np.array([[0, 0, 10, 10], [0, 0, 10, 10], [30, 30, 40, 40]], dtype=float)
+    assert shares_inside(boxes, []).tolist() == [0.0, 0.0, 0.0]
+    assert shares_inside(boxes[:1], [(5, 0, 20, 10), (0, 0, 10, 2)]) == pytest.approx([0.5])
+    assert shares_inside(boxes, [(-5, -5, 15, 15)]) == pytest.approx([1.0, 1.0, 0.0])
+    assert shares_inside(np.zeros((0, 4)), [(0, 0, 1, 1)]).shape == (0,)
 
 
 def test_a_box_on_a_neighbouring_rows_fruit_is_neither_a_hit_nor_false_and_a_box_mostly_off_it_is_false() -> None:

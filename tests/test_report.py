@@ -24,8 +24,9 @@ from PIL import Image
 
 from conftest import cli
 from renderloop.render.camera import read_camera_info
+from renderloop.render import contact_sheet
+from renderloop.render.contact_sheet import DepthScale
 from renderloop.render.frames import decode_depth, read_png
-from renderloop.report.frames import DepthScale
 from renderloop.report.html import build_report, write_report
 from renderloop.report.view3d import greenhouse_figure
 from renderloop.report.words import recall_sentence, signed_pct
@@ -187,6 +188,24 @@ def test_every_depth_image_is_coloured_on_the_one_scale_the_page_states(opened: 
     # the scale spans the fruit the frames show: most of them get a colour of their own, not the far grey
     fruit = np.concatenate(fruit_depth)
     assert np.mean((fruit >= near) & (fruit <= far)) > 0.95
+
+
+def test_the_contact_sheet_shows_the_reports_frames_on_the_reports_depth_scale(report: Path, complete_run: Path,
+                                                                               tmp_path: Path):
+    page = report.read_text(encoding="utf-8")
+    near, far = (float(v) for v in re.search(r'data-near="([\d.]+)" data-far="([\d.]+)"', page).groups())
+    shown = [int(frame) for frame in re.findall(r'class="depth" data-frame="(\d+)"', page)]
+    count = len(files.read_poses(complete_run)[0])
+    assert contact_sheet.pick_frames(complete_run, count) == shown
+    contact_sheet.draw_contact_sheet(complete_run, count, tmp_path / "sheet.png")
+    sheet = np.asarray(Image.open(tmp_path / "sheet.png").convert("RGB"))
+    width = contact_sheet.TILE_WIDTH
+    for row, frame in enumerate(shown):
+        depth = decode_depth(read_png(complete_run / names.frame_file(names.DEPTH, frame), np.uint16))
+        tile = Image.fromarray(DepthScale(near, far).colour(depth))
+        tile = np.asarray(tile.resize((width, round(tile.height * width / tile.width)), Image.Resampling.NEAREST))
+        left, top = contact_sheet.tile_origin(row, 1, tile.shape[0])
+        assert np.array_equal(sheet[top:top + tile.shape[0], left:left + width], tile), f"frame {frame}"
 
 
 def test_the_recall_sentence_uses_the_run_s_numbers(complete_run: Path):

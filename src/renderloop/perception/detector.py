@@ -121,6 +121,9 @@ class Detector:
         self.path = Path(model) if model is not None else shipped_model()
         options = ort.SessionOptions()
         options.intra_op_num_threads = threads
+        # Idle pool threads sleep rather than spin: a pass alone is as fast, and beside other busy processes (an eval's
+        # workers, a renderer) spinning threads take the cores the others wait for.
+        options.add_session_config_entry("session.intra_op.allow_spinning", "0")
         options.log_severity_level = 3
         try:
             self.session = ort.InferenceSession(str(self.path), options, providers=["CPUExecutionProvider"])

@@ -1,15 +1,8 @@
 """The report's frames: colour, depth and masks of a few frames spread over the scan, side by side.
 
-Every depth image is coloured on one scale, so a colour is one distance in all of them:
-from the nearest depth any shown frame holds (its 1st percentile, rounded down to the
-decimetre) to the farthest fruit they show (the 99th percentile of the fruit pixels'
-depth, rounded up; the median depth of the frames when the run has no masks). Nearer
-than the scale's start is drawn as its start; farther than its end (tables, walls) in
-grey, and pixels with no depth reading in white, so the plants stand out. The scale is
-drawn once above the frames, with its range in words.
-
-Depth and masks are palette PNGs (exact: a depth image's colours are the scale's
-colours), the colour frames JPEGs, at most FRAME_WIDTH px wide.
+The frames picked and their colours are the contact sheet's (`render/contact_sheet.py`): every depth image on one
+scale, drawn once above the frames with its range in words. Depth and masks are palette PNGs (exact: a depth
+image's colours are the scale's colours), the colour frames JPEGs, at most FRAME_WIDTH px wide.
 """
 
 from __future__ import annotations
@@ -17,61 +10,18 @@ from __future__ import annotations
 import base64
 import html
 import io
-import math
-from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
 import numpy as np
 from PIL import Image
 
-from renderloop.render.contact_sheet import mask_colours, pick_frames
+from renderloop.render.contact_sheet import (FAR_COLOR, LEVELS, NONE_COLOR, ROWS, DepthScale, depth_scale, mask_colours,
+                                             pick_frames)
 from renderloop.render.frames import decode_depth, read_png
 from renderloop.rundir import names
 
-ROWS = 6  # frames shown
 FRAME_WIDTH = 400  # px, at most
 JPEG_QUALITY = 85
-LEVELS = 254  # colours of the scale; two more for too far and no reading make a 256-colour palette
-FAR_COLOR, NONE_COLOR = (200, 200, 200), (255, 255, 255)
-
-
-@dataclass(frozen=True)
-class DepthScale:
-    """The one colour scale of the report's depth images, m."""
-
-    near: float
-    far: float
-
-    def palette(self) -> np.ndarray:
-        """(256, 3) uint8: the scale's LEVELS colours (turbo, near to far), then too far, then no reading."""
-        turbo = matplotlib.colormaps["turbo"](np.linspace(0.0, 1.0, LEVELS))[:, :3]
-        return np.vstack([np.round(255 * turbo), FAR_COLOR, NONE_COLOR]).astype(np.uint8)
-
-    def indices(self, depth: np.ndarray) -> np.ndarray:
-        """Each pixel's palette index: its level on the scale, LEVELS when farther, LEVELS + 1 with no reading."""
-        level = np.clip(np.round((depth - self.near) / (self.far - self.near) * (LEVELS - 1)), 0, LEVELS - 1)
-        index = np.where(depth > self.far, LEVELS, level)
-        return np.where(depth > 0, index, LEVELS + 1).astype(np.uint8)
-
-    def colour(self, depth: np.ndarray) -> np.ndarray:
-        """(H, W, 3) uint8: the depth image as the report draws it."""
-        return self.palette()[self.indices(depth)]
-
-    def words(self) -> str:
-        return f"{self.near:.1f} m to {self.far:.1f} m"
-
-
-def depth_scale(depths: list[np.ndarray], masks: list[np.ndarray | None]) -> DepthScale:
-    """The one scale for the frames whose planar depth (m, 0 = no reading) and instance masks (or None) are given."""
-    valid = np.concatenate([d[d > 0] for d in depths]) if depths else np.zeros(0)
-    if not len(valid):
-        return DepthScale(0.0, 1.0)
-    fruit = np.concatenate([d[(m > 0) & (d > 0)] for d, m in zip(depths, masks) if m is not None] or [np.zeros(0)])
-    near = math.floor(float(np.percentile(valid, 1)) * 10) / 10
-    far = float(np.percentile(fruit, 99)) if len(fruit) else float(np.median(valid))
-    far = math.ceil(far * 10) / 10
-    return DepthScale(near, max(far, near + 0.1))
 
 
 def _data_uri(image: Image.Image, kind: str) -> str:

@@ -10,7 +10,7 @@ import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.collections import PatchCollection, PolyCollection  # noqa: E402
+from matplotlib.collections import LineCollection, PatchCollection, PolyCollection  # noqa: E402
 from matplotlib.patches import Circle, Rectangle  # noqa: E402
 
 from renderloop.io.atomic import atomic_path  # noqa: E402
@@ -89,7 +89,7 @@ def _draw_plants(axes, scene: Scene, plants: list[Plant], detailed: bool) -> Non
     place as strokes, and none of a copy of a prototype (a compartment's thousand copies would take minutes)."""
     # Boxes, pots and fruit go in as collections: a patch added alone updates the axes' limits from its curves, which
     # for a compartment's ten thousand fruit takes a minute.
-    boxes, pots, fruit = [], [], []
+    boxes, pots, fruit, strokes, stroke_colors = [], [], [], [], []
     for plant in plants:
         low, high = plant.bounds.min, plant.bounds.max
         boxes.append(Rectangle(low[:2], high[0] - low[0], high[1] - low[1], fill=False, ls=":", ec="#2a7a2a", lw=0.8))
@@ -113,13 +113,15 @@ def _draw_plants(axes, scene: Scene, plants: list[Plant], detailed: bool) -> Non
             axes.annotate(f"plant {plant.id}", (plant.position[0], high[1] - 0.03), ha="center", fontsize=8)
         else:
             for leaf in plant.leaves:
-                tip = [leaf.base[i] + leaf.direction[i] * leaf.length for i in range(2)]
-                axes.plot([leaf.base[0], tip[0]], [leaf.base[1], tip[1]], color=leaf.rgb, lw=1.2, alpha=0.8)
+                strokes.append([leaf.base[:2], [leaf.base[i] + leaf.direction[i] * leaf.length for i in range(2)]])
+                stroke_colors.append(leaf.rgb)
         for pepper in scene.peppers_of(plant.id):
             fruit.append(Circle(pepper.center[:2], pepper.radius, fc=PEPPER_FACE[pepper.color],
                                 ec="k" if pepper.ripe else "#1a4a10", lw=0.6))
             if detailed:
                 axes.annotate(str(pepper.id), pepper.center[:2], ha="center", va="center", fontsize=6, color="w", zorder=4)
+    if strokes:  # one collection, not a line each: a row's hundreds of leaves as lines took most of the figure's second
+        axes.add_collection(LineCollection(strokes, colors=stroke_colors, lw=1.2, alpha=0.8))
     for patches, zorder in ((boxes, 1), (pots, 1), (fruit, 3)):
         if patches:
             axes.add_collection(PatchCollection(patches, match_original=True, zorder=zorder))
