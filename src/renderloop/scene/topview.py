@@ -121,7 +121,7 @@ def _draw_plants(axes, scene: Scene, plants: list[Plant], detailed: bool) -> Non
             if detailed:
                 axes.annotate(str(pepper.id), pepper.center[:2], ha="center", va="center", fontsize=6, color="w", zorder=4)
     if strokes:  # one collection, not a line each: a row's hundreds of leaves as lines took most of the figure's second
-        axes.add_collection(LineCollection(strokes, colors=stroke_colors, lw=1.2, alpha=0.8))
+        axes.add_collection(LineCollection(strokes, colors=stroke_colors, lw=1.2, alpha=0.8, zorder=2))
     for patches, zorder in ((boxes, 1), (pots, 1), (fruit, 3)):
         if patches:
             axes.add_collection(PatchCollection(patches, match_original=True, zorder=zorder))
