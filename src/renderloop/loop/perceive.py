@@ -22,14 +22,14 @@ class OnlinePerception:
     """The detector and the fruit points on each frame in frame order, feeding an online counter.
 
     `take` perceives a frame at once. `submit` and `collect` perceive frames on a thread of their own while the
-    caller goes on stepping and rendering (ONNX Runtime, with one thread of its own, and numpy's array work run
-    without the GIL): frames are perceived in the order they are submitted, and `collect` adds the finished ones to
+    caller goes on stepping and rendering (ONNX Runtime, whose own threads sleep when idle, and numpy's array work
+    run without the GIL): frames are perceived in the order they are submitted, and `collect` adds the finished ones to
     the counter in that order, on the caller's thread, so the counter reads the same whenever the thread finishes.
     A decision reads the counter after `collect(wait=True)`. ONNX Runtime gives the same boxes on one thread as on
     several (tests/test_loop.py compares the online run's detections.json with the batch stage's)."""
 
     def __init__(self, config: Config, counter: OnlineCounter | None, thread: bool = False) -> None:
-        self.detector, self.settings = Detector(config.detector.model, threads=1 if thread else 0), config.detector
+        self.detector, self.settings = Detector(config.detector.model), config.detector
         self.intrinsics = Intrinsics.from_config(config.camera)
         self.counter = counter
         self.frames: list[DetectionFrame] = []
