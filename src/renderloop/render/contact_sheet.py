@@ -11,6 +11,7 @@ pixels with no depth reading in white, so the plants stand out.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,6 +49,17 @@ def pick_frames(run_dir: Path, count: int, rows: int = ROWS) -> list[int]:
     return [index for _, index in best]
 
 
+@functools.cache
+def _palette() -> np.ndarray:
+    """Every scale's colours, built once: a sheet colours each of its frames with them."""
+    import matplotlib  # its colour maps only: the import is why it waits until a palette is asked for
+
+    turbo = matplotlib.colormaps["turbo"](np.linspace(0.0, 1.0, LEVELS))[:, :3]
+    palette = np.vstack([np.round(255 * turbo), FAR_COLOR, NONE_COLOR]).astype(np.uint8)
+    palette.flags.writeable = False
+    return palette
+
+
 @dataclass(frozen=True)
 class DepthScale:
     """The one colour scale of the shown depth images, m."""
@@ -56,11 +68,8 @@ class DepthScale:
     far: float
 
     def palette(self) -> np.ndarray:
-        """(256, 3) uint8: the scale's LEVELS colours (turbo, near to far), then too far, then no reading."""
-        import matplotlib  # its colour maps only: the import is why it waits until a palette is asked for
-
-        turbo = matplotlib.colormaps["turbo"](np.linspace(0.0, 1.0, LEVELS))[:, :3]
-        return np.vstack([np.round(255 * turbo), FAR_COLOR, NONE_COLOR]).astype(np.uint8)
+        """(256, 3) uint8, read-only: the scale's LEVELS colours (turbo, near to far), then too far, then no reading."""
+        return _palette()
 
     def indices(self, depth: np.ndarray) -> np.ndarray:
         """Each pixel's palette index: its level on the scale, LEVELS when farther, LEVELS + 1 with no reading."""
