@@ -26,6 +26,9 @@ smaller credit), since a scan's density decides how often a detection seen once 
 "exact" and "error" are at --lone-credit (default 0, the paper's count).
 
     .venv/bin/python benchmarks/intervals.py --calib runs/calib --held runs/held [--every 1 2 4 8 16] [--json out.json]
+
+`--credit-only` fits the lone credit alone (no interval, seconds instead of minutes) and checks each thinning's
+credit on the held-out runs; with `--result NAME` its table is stored as benchmarks/results/NAME.json for the docs.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from common import save_result
 
 from renderloop.config import IntervalConfig
 from renderloop.counting.uncertainty import (
@@ -248,6 +252,38 @@ def print_credit(title: str, fitted: dict[int, dict]) -> None:
               f"{part['error_pct_without']:>10.1f}% {part['exact_without']:>11.1%}")
 
 
+def main_credit(args: argparse.Namespace) -> None:
+    """The lone credit alone: fitted per thinning on the calibration runs, each checked on the held-out runs at that
+    credit and at 0 (the paper's count). The interval plays no part in an estimate, so it is not fitted."""
+    if not args.calib:
+        raise SystemExit("--credit-only fits on --calib runs")
+    interval = IntervalConfig()
+    calib = [case for run in run_dirs(args.calib) for case in gather(run, args.every, interval)[0]]
+    held = [case for run in run_dirs(args.held) for case in gather(run, args.every, interval)[0]]
+    fitted = fit_credit(calib)
+    print_credit("calibration runs, the estimate's lone credit fitted per thinning", fitted)
+    rows = []
+    for every, part in fitted.items():
+        mine = [case for case in held if case.every == every]
+        checked = (*yield_error(mine, part["lone_credit"]), *yield_error(mine, 0.0)) if mine else None
+        rows.append(["all" if every == 1 else f"1 in {every}", part["lone_credit"],
+                     f"{part['error_pct']:.1f} %, {100 * part['exact']:.0f} % ({part['error_pct_without']:.1f} %, "
+                     f"{100 * part['exact_without']:.0f} %)",
+                     checked and f"{checked[0]:.1f} %, {100 * checked[1]:.0f} % ({checked[2]:.1f} %, {100 * checked[3]:.0f} %)"])
+    if held:
+        print("\nheld-out runs at each fitted credit: error, exact (at credit 0)")
+        for row in rows:
+            print(f"{row[0]:>10} {row[1]:>12.2f}   {row[3]}")
+    if args.result:
+        table = {"columns": ["frames of the scan", "fitted credit", "calibration: error, exact (credit 0)",
+                             "held out: error, exact (credit 0)"], "rows": rows}
+        rounded = {str(every): {key: round(value, 1 if key.startswith("error") else 2) for key, value in part.items()}
+                   for every, part in fitted.items()}
+        figures = {"table": table, "fitted": rounded, "calibration_runs": len(run_dirs(args.calib)),
+                   "held_runs": len(run_dirs(args.held))}
+        print("wrote", save_result(args.result, figures))
+
+
 def main_first_pass(args: argparse.Namespace) -> None:
     report: dict = {}
     for name, paths in (("calib", args.calib), ("held", args.held)):
@@ -289,12 +325,18 @@ def main() -> None:
     parser.add_argument("--lone-credit", type=float, default=0.0, help="counting.lone_credit of the tables' estimates")
     parser.add_argument("--first-pass", action="store_true",
                         help="adaptive runs at their first decisions: fit hidden_unseen alone (module docstring)")
+    parser.add_argument("--credit-only", action="store_true",
+                        help="fit the lone credit per thinning on --calib and check it on --held, without the interval")
     parser.add_argument("--json", type=Path, help="write the figures here too")
+    parser.add_argument("--result", metavar="NAME", help="with --credit-only: store its table as benchmarks/results/NAME.json")
     args = parser.parse_args()
     if not args.calib and not args.held:
         parser.error("give --calib runs to fit on, --held runs to check on, or both")
     if args.first_pass:
         main_first_pass(args)
+        return
+    if args.credit_only:
+        main_credit(args)
         return
     base = IntervalConfig.model_validate({**IntervalConfig().model_dump(),
                                           **{k: float(v) if "." in v else int(v) for k, v in (s.split("=", 1) for s in args.set)}})

@@ -15,15 +15,23 @@ thinning on other seeds (benchmarks/intervals.py).
     renderloop eval --preset demo --seeds 21-25 --out runs/static065 --mission static --config rate065.yaml
     renderloop eval --preset demo --seeds 21-25 --out runs/adaptive --mission adaptive
     .venv/bin/python benchmarks/missions.py runs/static2 runs/static065 runs/adaptive [--thin 2:0.5 4:0.9]
-        [--plot curve.png] [--json out.json]
+        [--plot curve.png] [--json out.json] [--result NAME --made-by "the eval commands"]
+
+Each row also gives the error with no credit for fruit seen once (the paper's count: a fruit needs two detections),
+so what the credit buys stays in sight. `--result NAME` stores the table, a table of every flown evaluation's ripe and
+green error per seed and one of how often its plants' 90 % intervals (counts.json) hold the truth, as benchmarks/results/NAME.json
+for the docs, with the eval commands that made the folders.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import shlex
+import sys
 from pathlib import Path
 
+from common import save_result
 from intervals import gather, run_dirs, yield_error
 
 from renderloop.evaluation.table import scenario, summary
@@ -40,8 +48,19 @@ def _point(evaluation: str) -> dict:
     [kind] = kinds
     rate = configs[0].mission.adaptive.first_pass_rate_hz if kind == "adaptive" else configs[0].camera.rate_hz
     scenarios = [scenario(config.seed, kind, run) for config, run in zip(configs, runs)]
+    uncredited = [case for config, run in zip(configs, runs) for case in gather(run, [1], config.counting.interval)[0]]
+    plants = [plant for run in runs for plant in files.read_counts(run).plants]
     return {"evaluation": evaluation, "mission": kind, "rate_hz": rate, "seeds": sorted(s.seed for s in scenarios),
-            "runs": runs, **summary(scenarios)}
+            "runs": runs, "per_seed": {s.seed: (s.error_pct, s.exact_plants, _green_error(s)) for s in scenarios}, **summary(scenarios),
+            "mean_abs_error_no_credit_pct": round(yield_error(uncredited, 0.0)[0], 2),
+            "plants": len(plants), "plants_without_ripe": sum(p.truth == 0 for p in plants),
+            "interval_held": sum(p.interval.low <= p.truth <= p.interval.high for p in plants),
+            "interval_width": round(sum(p.interval.high - p.interval.low for p in plants) / len(plants), 2)}
+
+
+def _green_error(s) -> float | None:
+    """A scenario's green-yield error, %: None where the scene bears no green fruit."""
+    return round(100 * (s.unripe_estimate - s.unripe_truth) / s.unripe_truth, 1) if s.unripe_truth else None
 
 
 def _thinned(point: dict, every: int, credit: float) -> dict:
@@ -57,7 +76,35 @@ def _thinned(point: dict, every: int, credit: float) -> dict:
     worst = max(errors)
     return {**{k: point[k] for k in ("evaluation", "mission", "seeds", "flight_time_s")}, "rate_hz": point["rate_hz"] / every,
             "every": every, "lone_credit": credit, "frames": sum(frames) / len(frames), "mean_abs_error_pct": round(error, 2),
-            "worst_abs_error_pct": worst[0], "worst_seed": worst[1], "exact_plants": round(exact, 4)}
+            "worst_abs_error_pct": worst[0], "worst_seed": worst[1], "exact_plants": round(exact, 4),
+            "mean_abs_error_no_credit_pct": round(yield_error(cases, 0.0)[0], 2)}
+
+
+def _label(point: dict) -> str:
+    return point["mission"] + (f", 1 frame in {point['every']} (lone credit {point['lone_credit']:g})" if "every" in point else "")
+
+
+def _per_seed(figures: tuple) -> tuple:
+    error, exact, green = figures
+    return None if error is None else round(error, 1), round(100 * exact), green
+
+
+def _result(points: list[dict]) -> dict:
+    """The printed table, and the flown evaluations' error and plants exact per seed."""
+    table = {"columns": ["mission", "camera Hz (adaptive: first pass)", "frames a seed", "flight s a seed",
+                         "mean abs ripe-yield error, %", "worst seed, %", "plants exact, %", "error without the lone credit, %"],
+             "rows": [[_label(p), round(p["rate_hz"], 3), round(p["frames"]), round(p["flight_time_s"]), round(p["mean_abs_error_pct"], 1),
+                       f"{p['worst_abs_error_pct']:.1f} (seed {p['worst_seed']})", round(100 * p["exact_plants"]),
+                       round(p["mean_abs_error_no_credit_pct"], 1)] for p in points]}
+    flown = [p for p in points if "per_seed" in p]
+    seeds = {"columns": ["seed", *(f"{_label(p)} at {p['rate_hz']:.2g} Hz: {what}" for p in flown
+                                   for what in ("error, %", "plants exact, %", "green error, %"))],
+             "rows": [[seed, *(value for p in flown for value in _per_seed(p["per_seed"][seed]))] for seed in flown[0]["seeds"]]}
+    intervals = {"columns": ["mission", "camera Hz (adaptive: first pass)", "plants", "of them bearing no ripe fruit",
+                             "the 90 % interval holds the truth", "mean width"],
+                 "rows": [[_label(p), round(p["rate_hz"], 3), p["plants"], p["plants_without_ripe"], p["interval_held"],
+                           p["interval_width"]] for p in flown]}
+    return {"table": table, "seeds": seeds, "intervals": intervals}
 
 
 def main() -> None:
@@ -68,6 +115,8 @@ def main() -> None:
     parser.add_argument("--plot", type=Path, help="PNG of the error and the exact share against frames.")
     parser.add_argument("--title", default="", help="said beside the seeds above the plot")
     parser.add_argument("--json", type=Path)
+    parser.add_argument("--result", metavar="NAME", help="store the tables as benchmarks/results/NAME.json")
+    parser.add_argument("--made-by", default="", help="the eval commands that made the folders, for the stored result")
     args = parser.parse_args()
     points = [_point(evaluation) for evaluation in args.evaluations]
     for every, credit in (item.split(":") for item in args.thin):
@@ -75,14 +124,18 @@ def main() -> None:
     seeds = {tuple(p["seeds"]) for p in points}
     if len(seeds) != 1:
         raise SystemExit(f"the evaluations are on different seeds: {sorted(seeds)}")
-    print("| mission | camera Hz (adaptive: first pass) | frames a seed | flight s a seed | mean abs error % | plants exact |")
-    print("| --- | --- | --- | --- | --- | --- |")
-    for p in sorted(points, key=lambda p: (p["mission"], p["frames"])):
-        thinned = f" (1 frame in {p['every']}, lone credit {p['lone_credit']:g})" if "every" in p else ""
-        print(f"| {p['mission']}{thinned} | {p['rate_hz']:.2g} | {p['frames']:g} | {p['flight_time_s']:g} | "
-              f"{p['mean_abs_error_pct']:.1f} | {p['exact_plants']:.0%} |")
+    points.sort(key=lambda p: (p["mission"], p["frames"]))
+    result = _result(points)
+    for row in [result["table"]["columns"], ["---"] * len(result["table"]["columns"]), *result["table"]["rows"]]:
+        print("| " + " | ".join(map(str, row)) + " |")
     if args.json:
-        args.json.write_text(json.dumps([{k: v for k, v in p.items() if k != "runs"} for p in points], indent=1))
+        args.json.write_text(json.dumps([{k: v for k, v in p.items() if k not in ("runs", "per_seed")} for p in points], indent=1))
+    if args.result:
+        argv = sys.argv[1:]
+        if "--made-by" in argv:  # said once, before the command
+            del argv[argv.index("--made-by"):argv.index("--made-by") + 2]
+        command = shlex.join([".venv/bin/python", "benchmarks/missions.py", *argv])
+        print("wrote", save_result(args.result, result, f"{args.made_by}; {command}" if args.made_by else command))
     if args.plot:
         import matplotlib
 
