@@ -19,8 +19,8 @@ thinning on other seeds (benchmarks/intervals.py).
 
 Each row also gives the error with no credit for fruit seen once (the paper's count: a fruit needs two detections),
 so what the credit buys stays in sight. `--result NAME` stores the table, a table of every flown evaluation's ripe and
-green error per seed and one of how often its plants' 90 % intervals (counts.json) hold the truth, as benchmarks/results/NAME.json
-for the docs, with the eval commands that made the folders.
+green error per seed and one of how often its plants' 90 % intervals (counts.json) hold the truth, as
+benchmarks/results/NAME.json for the docs, with the eval commands that made the folders.
 """
 
 from __future__ import annotations
@@ -51,8 +51,8 @@ def _point(evaluation: str) -> dict:
     uncredited = [case for config, run in zip(configs, runs) for case in gather(run, [1], config.counting.interval)[0]]
     plants = [plant for run in runs for plant in files.read_counts(run).plants]
     return {"evaluation": evaluation, "mission": kind, "rate_hz": rate, "seeds": sorted(s.seed for s in scenarios),
-            "runs": runs, "per_seed": {s.seed: (s.error_pct, s.exact_plants, _green_error(s)) for s in scenarios}, **summary(scenarios),
-            "mean_abs_error_no_credit_pct": round(yield_error(uncredited, 0.0)[0], 2),
+            "runs": runs, **summary(scenarios), "mean_abs_error_no_credit_pct": round(yield_error(uncredited, 0.0)[0], 2),
+            "per_seed": {s.seed: (s.error_pct, s.exact_plants, _green_error(s)) for s in scenarios},
             "plants": len(plants), "plants_without_ripe": sum(p.truth == 0 for p in plants),
             "interval_held": sum(p.interval.low <= p.truth <= p.interval.high for p in plants),
             "interval_width": round(sum(p.interval.high - p.interval.low for p in plants) / len(plants), 2)}
@@ -81,7 +81,8 @@ def _thinned(point: dict, every: int, credit: float) -> dict:
 
 
 def _label(point: dict) -> str:
-    return point["mission"] + (f", 1 frame in {point['every']} (lone credit {point['lone_credit']:g})" if "every" in point else "")
+    thinned = f", 1 frame in {point['every']} (lone credit {point['lone_credit']:g})" if "every" in point else ""
+    return point["mission"] + thinned
 
 
 def _per_seed(figures: tuple) -> tuple:
@@ -90,16 +91,18 @@ def _per_seed(figures: tuple) -> tuple:
 
 
 def _result(points: list[dict]) -> dict:
-    """The printed table, and the flown evaluations' error and plants exact per seed."""
+    """The printed table; the flown evaluations' ripe error, plants exact and green error per seed; their intervals."""
     table = {"columns": ["mission", "camera Hz (adaptive: first pass)", "frames a seed", "flight s a seed",
-                         "mean abs ripe-yield error, %", "worst seed, %", "plants exact, %", "error without the lone credit, %"],
-             "rows": [[_label(p), round(p["rate_hz"], 3), round(p["frames"]), round(p["flight_time_s"]), round(p["mean_abs_error_pct"], 1),
-                       f"{p['worst_abs_error_pct']:.1f} (seed {p['worst_seed']})", round(100 * p["exact_plants"]),
-                       round(p["mean_abs_error_no_credit_pct"], 1)] for p in points]}
+                         "mean abs ripe-yield error, %", "worst seed, %", "plants exact, %",
+                         "error without the lone credit, %"],
+             "rows": [[_label(p), round(p["rate_hz"], 3), round(p["frames"]), round(p["flight_time_s"]),
+                       round(p["mean_abs_error_pct"], 1), f"{p['worst_abs_error_pct']:.1f} (seed {p['worst_seed']})",
+                       round(100 * p["exact_plants"]), round(p["mean_abs_error_no_credit_pct"], 1)] for p in points]}
     flown = [p for p in points if "per_seed" in p]
     seeds = {"columns": ["seed", *(f"{_label(p)} at {p['rate_hz']:.2g} Hz: {what}" for p in flown
                                    for what in ("error, %", "plants exact, %", "green error, %"))],
-             "rows": [[seed, *(value for p in flown for value in _per_seed(p["per_seed"][seed]))] for seed in flown[0]["seeds"]]}
+             "rows": [[seed, *(value for p in flown for value in _per_seed(p["per_seed"][seed]))]
+                      for seed in flown[0]["seeds"]]}
     intervals = {"columns": ["mission", "camera Hz (adaptive: first pass)", "plants", "of them bearing no ripe fruit",
                              "the 90 % interval holds the truth", "mean width"],
                  "rows": [[_label(p), round(p["rate_hz"], 3), p["plants"], p["plants_without_ripe"], p["interval_held"],
@@ -129,7 +132,8 @@ def main() -> None:
     for row in [result["table"]["columns"], ["---"] * len(result["table"]["columns"]), *result["table"]["rows"]]:
         print("| " + " | ".join(map(str, row)) + " |")
     if args.json:
-        args.json.write_text(json.dumps([{k: v for k, v in p.items() if k not in ("runs", "per_seed")} for p in points], indent=1))
+        kept = [{k: v for k, v in p.items() if k not in ("runs", "per_seed")} for p in points]
+        args.json.write_text(json.dumps(kept, indent=1))
     if args.result:
         argv = sys.argv[1:]
         if "--made-by" in argv:  # said once, before the command
