@@ -108,6 +108,7 @@ def test_results_markers_in_code_stay_as_written():
     ("{{ result: no_such_file figure }}", "no results file"),
     ("{{ result: loop no.such.key }}", "has no figure `no.such.key`"),
     ("<!-- results: loop cycles -->", "is not a table"),
+    ("  <!-- results: loop table -->", "starts its line"),
 ])
 def test_a_marker_naming_a_missing_file_or_figure_fails_the_build_naming_page_marker_and_file(marker, says):
     from mkdocs.exceptions import PluginError

@@ -158,6 +158,9 @@ def render(markdown: str, directory: Path, page: str) -> str:
             out.append(line)
             continue
         match = TABLE.match(line)
+        if not match and TABLE.match(line.strip()):  # indented (in a list item), Markdown would hide it as a comment
+            raise ResultsError(f"{page}: `{line.strip()}` is indented, where Markdown hides it: a table of {directory}/ "
+                               "starts its line")
         if match:
             out.append(table_block(match.group(1), match.group(2), directory, f"{page}: `{line.strip()}`"))
             continue
