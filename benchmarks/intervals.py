@@ -258,8 +258,9 @@ def main_credit(args: argparse.Namespace) -> None:
     if not args.calib:
         raise SystemExit("--credit-only fits on --calib runs")
     interval = IntervalConfig()
-    calib = [case for run in run_dirs(args.calib) for case in gather(run, args.every, interval)[0]]
-    held = [case for run in run_dirs(args.held) for case in gather(run, args.every, interval)[0]]
+    calib_runs, held_runs = run_dirs(args.calib), run_dirs(args.held)
+    calib = [case for run in calib_runs for case in gather(run, args.every, interval)[0]]
+    held = [case for run in held_runs for case in gather(run, args.every, interval)[0]]
     fitted = fit_credit(calib)
     print_credit("calibration runs, the estimate's lone credit fitted per thinning", fitted)
     rows = []
@@ -279,8 +280,7 @@ def main_credit(args: argparse.Namespace) -> None:
                              "held out: error, exact (credit 0)"], "rows": rows}
         rounded = {str(every): {key: round(value, 1 if key.startswith("error") else 2) for key, value in part.items()}
                    for every, part in fitted.items()}
-        figures = {"table": table, "fitted": rounded, "calibration_runs": len(run_dirs(args.calib)),
-                   "held_runs": len(run_dirs(args.held))}
+        figures = {"table": table, "fitted": rounded, "calibration_runs": len(calib_runs), "held_runs": len(held_runs)}
         print("wrote", save_result(args.result, figures))
 
 
